@@ -1,0 +1,43 @@
+#pragma once
+// Per-particle surface normals (DESIGN section 5). Each surface particle holds an index
+// (ParticleStore::normalIndex) into this list; interior particles hold -1. Normals of rigid and static
+// bodies are stored in the body's principal frame, so moving a body costs nothing; normals of deformable
+// bodies are stored in the world frame. A zero normal means the particle is on the surface but has no
+// preferred direction (a lone particle).
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "engine/core/types.hpp"
+
+namespace volpar {
+
+class NormalCache {
+ public:
+  /// Appends a normal and returns its index.
+  std::int32_t add(const Vec3& normal) {
+    normals_.push_back(normal);
+    return static_cast<std::int32_t>(normals_.size() - 1);
+  }
+  [[nodiscard]] const Vec3& operator[](std::int32_t index) const { return normals_[static_cast<std::size_t>(index)]; }
+  void set(std::int32_t index, const Vec3& normal) { normals_[static_cast<std::size_t>(index)] = normal; }
+  [[nodiscard]] std::size_t size() const { return normals_.size(); }
+
+ private:
+  std::vector<Vec3> normals_;
+};
+
+/// Outward normals estimated from the connector neighbourhood: for particle i, the unit vector from the
+/// mean of its neighbours to i. A particle is on the surface when that offset exceeds 15 % of its mean
+/// neighbour distance, or when it has fewer than 4 neighbours; interior particles get (surface = 0, zero
+/// normal). positions [P], connectors as index pairs.
+struct EstimatedNormals {
+  std::vector<Vec3> normal;           ///< [P]
+  std::vector<std::uint8_t> surface;  ///< [P]
+};
+[[nodiscard]] EstimatedNormals estimateNormals(std::span<const Vec3> positions,
+                                               std::span<const std::array<std::uint32_t, 2>> connectors);
+
+}  // namespace volpar

@@ -1,0 +1,70 @@
+#pragma once
+// Bodies by index: a hot BodyState touched every step, and a cold BodyInfo for bookkeeping.
+//
+// A rigid body's frame is its *principal frame*: origin at the centre of mass, axes along the
+// principal axes of inertia, so the body-frame inertia is diagonal. Particle offsets (ParticleStore::local)
+// and cached normals live in that frame. The frame the user built the shape in (the *shape frame*) is
+// recovered with BodyInfo::principalInShape and BodyInfo::comInShape.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/core/ids.hpp"
+#include "engine/core/types.hpp"
+
+namespace volpar {
+
+enum class BodyKind : std::uint8_t {
+  Rigid,       ///< particles joined by rods, moves as one rigid body
+  Deformable,  ///< particles are point masses joined by springs and rods
+  Static,      ///< never moves, infinite mass
+};
+
+/// Hot per-body state, read and written by the integrators and the solver.
+struct BodyState {
+  Vec3 position = Vec3::Zero();         ///< centre of mass, world [m]
+  Quat orientation = Quat::Identity();  ///< principal frame -> world (unit)
+  Vec3 linearVelocity = Vec3::Zero();   ///< of the centre of mass, world [m/s]
+  Vec3 angularVelocity = Vec3::Zero();  ///< world [rad/s]
+  Vec3 invInertiaLocal = Vec3::Zero();  ///< inverse principal moments [1/(kg m^2)]; 0 for static and deformable
+  double invMass = 0.0;                 ///< [1/kg]; 0 for static
+  Mat3 invInertiaWorld = Mat3::Zero();  ///< R diag(invInertiaLocal) R^T [1/(kg m^2)]
+};
+static_assert(sizeof(BodyState) <= 224, "BodyState is hot: keep it within 3.5 cache lines");
+
+/// Cold per-body data.
+struct BodyInfo {
+  std::string name;
+  BodyKind kind = BodyKind::Rigid;
+  MaterialId material;
+  double mass = 0.0;                           ///< [kg]
+  Vec3 inertiaLocal = Vec3::Zero();            ///< principal moments about the centre of mass [kg m^2]
+  Quat principalInShape = Quat::Identity();    ///< rotation from principal-frame to shape-frame coordinates
+  Vec3 comInShape = Vec3::Zero();              ///< centre of mass in shape-frame coordinates [m]
+  std::vector<ParticleId> particles;           ///< the body's particles, ascending
+};
+
+struct BodyStore {
+  std::vector<BodyState> state;  ///< [B]
+  std::vector<BodyInfo> info;    ///< [B]
+
+  [[nodiscard]] std::size_t size() const { return state.size(); }
+
+  BodyId add(BodyState s, BodyInfo i) {
+    state.push_back(std::move(s));
+    info.push_back(std::move(i));
+    return BodyId(state.size() - 1);
+  }
+
+  /// Orientation of the body's shape frame in the world.
+  [[nodiscard]] Quat shapeOrientation(BodyId id) const {
+    return state[id.index()].orientation * info[id.index()].principalInShape.conjugate();
+  }
+  /// Origin of the body's shape frame in the world [m].
+  [[nodiscard]] Vec3 shapeOrigin(BodyId id) const {
+    return state[id.index()].position - shapeOrientation(id) * info[id.index()].comInShape;
+  }
+};
+
+}  // namespace volpar

@@ -1,0 +1,42 @@
+#pragma once
+// Particle data, structure of arrays. Index i of every array is particle ParticleId(i).
+// Arrays of Vec3 are contiguous doubles with the layout of an HDF5 [P,3] array; use
+// positions()/velocities() for Eigen [3 x P] views.
+
+#include <cstdint>
+#include <vector>
+
+#include "engine/core/ids.hpp"
+#include "engine/core/types.hpp"
+
+namespace volpar {
+
+/// Per-particle flag bits.
+enum ParticleFlag : std::uint8_t {
+  kParticleSurface = 1u << 0,  ///< on the body's surface (has a cached normal)
+};
+
+struct ParticleStore {
+  std::vector<Vec3> position;          ///< world centre [m], [P]
+  std::vector<Vec3> velocity;          ///< world velocity [m/s], [P]
+  std::vector<Vec3> local;             ///< centre in the owning body's principal frame [m], [P] (rigid/static)
+  std::vector<double> radius;          ///< [m], [P]
+  std::vector<double> mass;            ///< [kg], [P]
+  std::vector<double> invMass;         ///< [1/kg], [P]; 0 for particles of static bodies
+  std::vector<BodyId> body;            ///< owning body, [P]; changes only when a body breaks apart
+  std::vector<std::int32_t> normalIndex;  ///< index into the normal cache, -1 for interior particles, [P]
+  std::vector<std::uint8_t> flags;     ///< ParticleFlag bits, [P]
+
+  [[nodiscard]] std::size_t size() const { return radius.size(); }
+
+  /// Grows every array by `count` default-initialised particles; returns the first new id.
+  ParticleId grow(std::size_t count);
+  void reserve(std::size_t count);
+
+  [[nodiscard]] Points positions() { return Points(position.data()->data(), 3, static_cast<Eigen::Index>(size())); }
+  [[nodiscard]] ConstPoints positions() const {
+    return ConstPoints(position.data()->data(), 3, static_cast<Eigen::Index>(size()));
+  }
+};
+
+}  // namespace volpar

@@ -1,0 +1,51 @@
+#pragma once
+// Reading volpar trajectories back (for `volpar inspect`, `volpar xdmf` and tests).
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/core/status.hpp"
+#include "engine/core/types.hpp"
+
+namespace volpar {
+
+struct TrajectorySummary {
+  std::string creatorName;
+  std::string creatorVersion;
+  std::string sceneName;
+  std::string sceneText;
+  std::size_t frames = 0;
+  std::size_t particles = 0;
+  std::size_t bodies = 0;
+  std::vector<std::int64_t> step;    ///< [T]
+  std::vector<double> time;          ///< [T] [s]
+  std::vector<double> kinetic;       ///< [T] [J]
+  std::vector<double> potential;     ///< [T] [J]
+  std::vector<double> total;         ///< [T] [J]
+  std::vector<std::string> bodyNames;  ///< [B]
+};
+
+class H5mdReader {
+ public:
+  [[nodiscard]] static Result<std::unique_ptr<H5mdReader>> open(const std::string& path);
+  ~H5mdReader();
+  H5mdReader(const H5mdReader&) = delete;
+  H5mdReader& operator=(const H5mdReader&) = delete;
+
+  [[nodiscard]] Result<TrajectorySummary> summary() const;
+  /// Particle positions of frame t [m], [P].
+  [[nodiscard]] Result<std::vector<Vec3>> positions(std::size_t frame) const;
+  /// Body centres of mass of frame t [m], [B].
+  [[nodiscard]] Result<std::vector<Vec3>> bodyPositions(std::size_t frame) const;
+  /// Body shape-frame orientations of frame t, [B].
+  [[nodiscard]] Result<std::vector<Quat>> bodyOrientations(std::size_t frame) const;
+
+ private:
+  struct Impl;
+  explicit H5mdReader(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace volpar

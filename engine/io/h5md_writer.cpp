@@ -1,0 +1,498 @@
+#include "engine/io/h5md_writer.hpp"
+
+#include <hdf5.h>
+
+#include <array>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "engine/core/version.hpp"
+#include "engine/io/xdmf_writer.hpp"
+
+namespace volpar {
+
+namespace {
+
+/// Owns an HDF5 identifier.
+class Hid {
+ public:
+  Hid() = default;
+  Hid(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  Hid(Hid&& o) noexcept : id_(o.id_), close_(o.close_) { o.id_ = H5I_INVALID_HID; }
+  Hid& operator=(Hid&& o) noexcept {
+    if (this != &o) {
+      reset();
+      id_ = o.id_;
+      close_ = o.close_;
+      o.id_ = H5I_INVALID_HID;
+    }
+    return *this;
+  }
+  Hid(const Hid&) = delete;
+  Hid& operator=(const Hid&) = delete;
+  ~Hid() { reset(); }
+  void reset() {
+    if (id_ >= 0 && close_) close_(id_);
+    id_ = H5I_INVALID_HID;
+  }
+  [[nodiscard]] hid_t get() const { return id_; }
+  [[nodiscard]] bool valid() const { return id_ >= 0; }
+
+ private:
+  hid_t id_ = H5I_INVALID_HID;
+  herr_t (*close_)(hid_t) = nullptr;
+};
+
+/// Thrown inside this file only, turned into an Error at the public boundary.
+struct H5Failure {
+  std::string what;
+};
+
+void check(herr_t status, const std::string& what) {
+  if (status < 0) throw H5Failure{what};
+}
+
+Hid checked(hid_t id, herr_t (*close)(hid_t), const std::string& what) {
+  if (id < 0) throw H5Failure{what};
+  return Hid(id, close);
+}
+
+Hid group(hid_t parent, const std::string& name) {
+  Hid lcpl = checked(H5Pcreate(H5P_LINK_CREATE), H5Pclose, "link property list");
+  check(H5Pset_create_intermediate_group(lcpl.get(), 1), "intermediate groups");
+  Hid gcpl = checked(H5Pcreate(H5P_GROUP_CREATE), H5Pclose, "group property list");
+  check(H5Pset_obj_track_times(gcpl.get(), 0), "track times");  // identical runs give identical files
+  return checked(H5Gcreate2(parent, name.c_str(), lcpl.get(), gcpl.get(), H5P_DEFAULT), H5Gclose, "group " + name);
+}
+
+/// Dataset creation properties: no modification times, so identical runs give identical files.
+Hid datasetPlist() {
+  Hid dcpl = checked(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "dataset property list");
+  check(H5Pset_obj_track_times(dcpl.get(), 0), "track times");
+  return dcpl;
+}
+
+Hid vlenString() {
+  Hid t = checked(H5Tcopy(H5T_C_S1), H5Tclose, "string type");
+  check(H5Tset_size(t.get(), H5T_VARIABLE), "string size");
+  check(H5Tset_cset(t.get(), H5T_CSET_UTF8), "string charset");
+  return t;
+}
+
+void attrString(hid_t obj, const std::string& name, const std::string& value) {
+  Hid type = vlenString();
+  Hid space = checked(H5Screate(H5S_SCALAR), H5Sclose, "scalar space");
+  Hid attr = checked(H5Acreate2(obj, name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+                     "attribute " + name);
+  const char* p = value.c_str();
+  check(H5Awrite(attr.get(), type.get(), &p), "attribute " + name);
+}
+
+template <class T>
+hid_t nativeType();
+template <>
+hid_t nativeType<double>() { return H5T_NATIVE_DOUBLE; }
+template <>
+hid_t nativeType<std::int32_t>() { return H5T_NATIVE_INT32; }
+template <>
+hid_t nativeType<std::int64_t>() { return H5T_NATIVE_INT64; }
+
+template <class T>
+hid_t fileType();
+template <>
+hid_t fileType<double>() { return H5T_IEEE_F64LE; }
+template <>
+hid_t fileType<std::int32_t>() { return H5T_STD_I32LE; }
+template <>
+hid_t fileType<std::int64_t>() { return H5T_STD_I64LE; }
+
+template <class T>
+void attrArray(hid_t obj, const std::string& name, const std::vector<T>& values) {
+  const hsize_t n = values.size();
+  Hid space = checked(H5Screate_simple(1, &n, nullptr), H5Sclose, "space");
+  Hid attr = checked(H5Acreate2(obj, name.c_str(), fileType<T>(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+                     "attribute " + name);
+  check(H5Awrite(attr.get(), nativeType<T>(), values.data()), "attribute " + name);
+}
+
+template <class T>
+void attrScalar(hid_t obj, const std::string& name, T value) {
+  Hid space = checked(H5Screate(H5S_SCALAR), H5Sclose, "scalar space");
+  Hid attr = checked(H5Acreate2(obj, name.c_str(), fileType<T>(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+                     "attribute " + name);
+  check(H5Awrite(attr.get(), nativeType<T>(), &value), "attribute " + name);
+}
+
+/// Fixed-length string array attribute (H5MD box/boundary).
+void attrFixedStrings(hid_t obj, const std::string& name, const std::vector<std::string>& values, std::size_t len) {
+  Hid type = checked(H5Tcopy(H5T_C_S1), H5Tclose, "string type");
+  check(H5Tset_size(type.get(), len), "string size");
+  check(H5Tset_strpad(type.get(), H5T_STR_NULLPAD), "string pad");
+  std::string buf(values.size() * len, '\0');
+  for (std::size_t i = 0; i < values.size(); ++i) values[i].copy(&buf[i * len], std::min(len, values[i].size()));
+  const hsize_t n = values.size();
+  Hid space = checked(H5Screate_simple(1, &n, nullptr), H5Sclose, "space");
+  Hid attr = checked(H5Acreate2(obj, name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+                     "attribute " + name);
+  check(H5Awrite(attr.get(), type.get(), buf.data()), "attribute " + name);
+}
+
+Hid compressedPlist(const std::vector<hsize_t>& chunk) {
+  Hid dcpl = datasetPlist();
+  check(H5Pset_chunk(dcpl.get(), static_cast<int>(chunk.size()), chunk.data()), "chunk");
+  check(H5Pset_shuffle(dcpl.get()), "shuffle");
+  check(H5Pset_deflate(dcpl.get(), 1), "deflate");
+  return dcpl;
+}
+
+/// Time-independent dataset with dims `dims`.
+template <class T>
+void dataset(hid_t parent, const std::string& name, const std::vector<hsize_t>& dims, const T* data,
+             const std::string& unit = "") {
+  Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose, "space");
+  hsize_t total = 1;
+  for (const hsize_t d : dims) total *= d;
+  std::vector<hsize_t> chunk = dims;
+  if (!chunk.empty()) chunk[0] = std::min<hsize_t>(dims[0], 65536);
+  Hid dcpl = total > 0 ? compressedPlist(chunk) : datasetPlist();
+  Hid ds = checked(H5Dcreate2(parent, name.c_str(), fileType<T>(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+                   H5Dclose, "dataset " + name);
+  if (total > 0) check(H5Dwrite(ds.get(), nativeType<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "write " + name);
+  if (!unit.empty()) attrString(ds.get(), "unit", unit);
+}
+
+void stringDataset(hid_t parent, const std::string& name, const std::vector<std::string>& values) {
+  Hid type = vlenString();
+  const hsize_t n = values.size();
+  Hid space = checked(H5Screate_simple(1, &n, nullptr), H5Sclose, "space");
+  Hid dcpl = datasetPlist();
+  Hid ds = checked(H5Dcreate2(parent, name.c_str(), type.get(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+                   H5Dclose, "dataset " + name);
+  std::vector<const char*> ptrs;
+  for (const auto& v : values) ptrs.push_back(v.c_str());
+  if (n > 0) check(H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()), "write " + name);
+}
+
+void scalarString(hid_t parent, const std::string& name, const std::string& value) {
+  Hid type = vlenString();
+  Hid space = checked(H5Screate(H5S_SCALAR), H5Sclose, "scalar space");
+  Hid dcpl = datasetPlist();
+  Hid ds = checked(H5Dcreate2(parent, name.c_str(), type.get(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+                   H5Dclose, "dataset " + name);
+  const char* p = value.c_str();
+  check(H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, &p), "write " + name);
+}
+
+/// An extendible dataset [T, tail...], grown one row per frame.
+class Series {
+ public:
+  Series() = default;
+  Series(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail) : tail_(std::move(tail)) {
+    std::vector<hsize_t> dims{0}, maxdims{H5S_UNLIMITED}, chunk{1};
+    hsize_t rowSize = 1;
+    for (const hsize_t d : tail_) {
+      dims.push_back(d);
+      maxdims.push_back(d);
+      rowSize *= d;
+    }
+    // Small chunks: the file is flushed after every frame, which recompresses the partly filled last
+    // chunk, so a chunk holds at most 8 KiB of small rows (several frames) or 64 KiB of one big row.
+    constexpr hsize_t kSmallRow = 1024;
+    constexpr hsize_t kBigChunk = 8192;
+    if (rowSize == 0) {
+      chunk.assign(dims.size(), 1);
+    } else if (rowSize <= kSmallRow) {
+      chunk[0] = kSmallRow / rowSize;
+      for (const hsize_t d : tail_) chunk.push_back(d);
+    } else {
+      chunk.push_back(std::clamp<hsize_t>(kBigChunk / (rowSize / tail_[0]), 1, tail_[0]));
+      for (std::size_t k = 1; k < tail_.size(); ++k) chunk.push_back(tail_[k]);
+    }
+    Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), maxdims.data()), H5Sclose, "space");
+    Hid dcpl = compressedPlist(chunk);
+    ds_ = checked(H5Dcreate2(parent, name.c_str(), type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
+                  "dataset " + name);
+  }
+
+  [[nodiscard]] hid_t id() const { return ds_.get(); }
+
+  void append(hid_t memType, const void* data) {
+    std::vector<hsize_t> dims{rows_ + 1};
+    for (const hsize_t d : tail_) dims.push_back(d);
+    check(H5Dset_extent(ds_.get(), dims.data()), "extend dataset");
+    Hid fileSpace = checked(H5Dget_space(ds_.get()), H5Sclose, "dataset space");
+    std::vector<hsize_t> start(dims.size(), 0), count = dims;
+    start[0] = rows_;
+    count[0] = 1;
+    check(H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr), "select");
+    Hid memSpace = checked(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr), H5Sclose, "space");
+    bool empty = false;
+    for (const hsize_t d : tail_) empty = empty || d == 0;
+    if (!empty) check(H5Dwrite(ds_.get(), memType, memSpace.get(), fileSpace.get(), H5P_DEFAULT, data), "write frame");
+    ++rows_;
+  }
+
+ private:
+  Hid ds_;
+  std::vector<hsize_t> tail_;
+  hsize_t rows_ = 0;
+};
+
+/// An H5MD time-dependent element: {value [T, ...], step [T], time [T]}.
+class Element {
+ public:
+  Element() = default;
+  /// With `clock` given, step and time are hard links to that element's (H5MD allows sharing them
+  /// between elements sampled together), and append() leaves them to the owner.
+  Element(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, const std::string& unit,
+          const Element* clock = nullptr) {
+    group_ = group(parent, name);
+    value_ = Series(group_.get(), "value", type, std::move(tail));
+    if (!unit.empty()) attrString(value_.id(), "unit", unit);
+    if (clock) {
+      check(H5Lcreate_hard(clock->group_.get(), "step", group_.get(), "step", H5P_DEFAULT, H5P_DEFAULT), "link step");
+      check(H5Lcreate_hard(clock->group_.get(), "time", group_.get(), "time", H5P_DEFAULT, H5P_DEFAULT), "link time");
+      ownsClock_ = false;
+      return;
+    }
+    step_ = Series(group_.get(), "step", H5T_STD_I64LE, {});
+    time_ = Series(group_.get(), "time", H5T_IEEE_F64LE, {});
+    attrString(time_.id(), "unit", "s");
+  }
+  void append(hid_t memType, const void* data, std::int64_t step, double time) {
+    value_.append(memType, data);
+    if (!ownsClock_) return;
+    step_.append(H5T_NATIVE_INT64, &step);
+    time_.append(H5T_NATIVE_DOUBLE, &time);
+  }
+
+ private:
+  Hid group_;
+  Series value_, step_, time_;
+  bool ownsClock_ = true;
+};
+
+void writeBox(hid_t particlesGroup) {
+  Hid box = group(particlesGroup, "box");
+  attrScalar<std::int32_t>(box.get(), "dimension", 3);
+  attrFixedStrings(box.get(), "boundary", {"none", "none", "none"}, 4);
+}
+
+std::string kindName(BodyKind k) {
+  switch (k) {
+    case BodyKind::Rigid: return "rigid";
+    case BodyKind::Deformable: return "deformable";
+    case BodyKind::Static: return "static";
+  }
+  return "unknown";
+}
+
+std::string readText(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+struct H5mdWriter::Impl {
+  Hid file;
+  Element position, velocity, particleBody;
+  Element bodyPosition, bodyOrientation, bodyVelocity, bodyAngularVelocity;
+  Element kinetic, potential, total, linearMomentum, angularMomentum;
+  // scratch, sized once
+  std::vector<std::int32_t> bodyIndex;
+  std::vector<double> bodyVec3, bodyQuat;
+  std::size_t particles = 0;
+};
+
+H5mdWriter::H5mdWriter(std::unique_ptr<Impl> impl, std::string path) : impl_(std::move(impl)), path_(std::move(path)) {}
+
+H5mdWriter::~H5mdWriter() { static_cast<void>(close()); }
+
+Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, const World& world,
+                                                       const TrajectoryMeta& meta) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are reported through Result, not printed by HDF5
+  auto impl = std::make_unique<Impl>();
+  try {
+    impl->file = checked(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose, "create file");
+    const hid_t f = impl->file.get();
+    const ParticleStore& p = world.particles();
+    const BodyStore& b = world.bodies();
+    const hsize_t np = p.size();
+    const hsize_t nb = b.size();
+    impl->particles = p.size();
+
+    // /h5md
+    {
+      Hid h5md = group(f, "h5md");
+      attrArray<std::int32_t>(h5md.get(), "version", {1, 1});
+      Hid author = group(h5md.get(), "author");
+      const char* user = std::getenv("USER");
+      attrString(author.get(), "name", user && *user ? user : "unknown");
+      Hid creator = group(h5md.get(), "creator");
+      attrString(creator.get(), "name", kName);
+      attrString(creator.get(), "version", kVersion);
+    }
+    // /particles/all
+    {
+      Hid all = group(f, "particles/all");
+      writeBox(all.get());
+      dataset<double>(all.get(), "radius", {np}, p.radius.data(), "m");
+      dataset<double>(all.get(), "mass", {np}, p.mass.data(), "kg");
+      impl->position = Element(all.get(), "position", H5T_IEEE_F64LE, {np, 3}, "m");
+      impl->velocity = Element(all.get(), "velocity", H5T_IEEE_F64LE, {np, 3}, "m s-1", &impl->position);
+      impl->particleBody = Element(all.get(), "body", H5T_STD_I32LE, {np}, "", &impl->position);
+    }
+    // /particles/bodies
+    {
+      Hid bodies = group(f, "particles/bodies");
+      writeBox(bodies.get());
+      std::vector<std::string> names, kinds;
+      std::vector<double> mass, inertia, axes, com;
+      for (std::size_t i = 0; i < nb; ++i) {
+        const BodyInfo& info = b.info[i];
+        names.push_back(info.name);
+        kinds.push_back(kindName(info.kind));
+        mass.push_back(info.mass);
+        for (int k = 0; k < 3; ++k) inertia.push_back(info.inertiaLocal[k]);
+        const Quat& q = info.principalInShape;
+        axes.insert(axes.end(), {q.w(), q.x(), q.y(), q.z()});
+        for (int k = 0; k < 3; ++k) com.push_back(info.comInShape[k]);
+      }
+      stringDataset(bodies.get(), "name", names);
+      stringDataset(bodies.get(), "kind", kinds);
+      dataset<double>(bodies.get(), "mass", {nb}, mass.data(), "kg");
+      dataset<double>(bodies.get(), "principal_moments", {nb, 3}, inertia.data(), "kg m2");
+      dataset<double>(bodies.get(), "principal_axes", {nb, 4}, axes.data());
+      dataset<double>(bodies.get(), "com_in_shape", {nb, 3}, com.data(), "m");
+      impl->bodyPosition = Element(bodies.get(), "position", H5T_IEEE_F64LE, {nb, 3}, "m");
+      impl->bodyOrientation = Element(bodies.get(), "orientation", H5T_IEEE_F64LE, {nb, 4}, "", &impl->bodyPosition);
+      impl->bodyVelocity = Element(bodies.get(), "velocity", H5T_IEEE_F64LE, {nb, 3}, "m s-1", &impl->bodyPosition);
+      impl->bodyAngularVelocity =
+          Element(bodies.get(), "angular_velocity", H5T_IEEE_F64LE, {nb, 3}, "s-1", &impl->bodyPosition);
+    }
+    // /observables
+    {
+      Hid obs = group(f, "observables");
+      impl->kinetic = Element(obs.get(), "kinetic_energy", H5T_IEEE_F64LE, {}, "J");
+      const Element* clock = &impl->kinetic;
+      impl->potential = Element(obs.get(), "potential_energy", H5T_IEEE_F64LE, {}, "J", clock);
+      impl->total = Element(obs.get(), "total_energy", H5T_IEEE_F64LE, {}, "J", clock);
+      impl->linearMomentum = Element(obs.get(), "linear_momentum", H5T_IEEE_F64LE, {3}, "kg m s-1", clock);
+      impl->angularMomentum = Element(obs.get(), "angular_momentum", H5T_IEEE_F64LE, {3}, "kg m2 s-1", clock);
+    }
+    // /parameters
+    {
+      Hid par = group(f, "parameters");
+      scalarString(par.get(), "scene", meta.sceneText);
+      attrString(par.get(), "scene_name", meta.sceneName);
+      attrString(par.get(), "scene_file", meta.sceneFile);
+      attrString(par.get(), "engine", kName);
+      attrString(par.get(), "engine_version", kVersion);
+      const WorldSettings& s = world.settings();
+      attrScalar<double>(par.get(), "dt", s.dt);
+      attrArray<double>(par.get(), "gravity", {s.gravity.x(), s.gravity.y(), s.gravity.z()});
+      attrScalar<std::int32_t>(par.get(), "solver_iterations", s.solverIterations);
+      attrScalar<std::int32_t>(par.get(), "substeps", s.substeps);
+      attrScalar<std::int32_t>(par.get(), "output_every", meta.outputEvery);
+      attrScalar<std::int64_t>(par.get(), "steps_requested", meta.stepsRequested);
+      // planes: normal (3) and offset per row
+      std::vector<double> planes;
+      for (const Plane& pl : world.planes()) planes.insert(planes.end(), {pl.normal.x(), pl.normal.y(), pl.normal.z(), pl.offset});
+      dataset<double>(par.get(), "planes", {world.planes().size(), 4}, planes.data(), "");
+      if (!meta.extraFiles.empty()) {
+        Hid files = group(par.get(), "files");
+        std::set<std::string> used;
+        for (const std::string& file : meta.extraFiles) {
+          std::string name = std::filesystem::path(file).filename().string();
+          if (name.empty() || name[0] == '.') name = "file" + name;
+          for (int k = 2; used.contains(name); ++k) name = std::filesystem::path(file).filename().string() + "_" + std::to_string(k);
+          used.insert(name);
+          scalarString(files.get(), name, readText(file));
+        }
+      }
+    }
+    impl->bodyIndex.resize(p.size());
+    impl->bodyVec3.resize(3 * b.size());
+    impl->bodyQuat.resize(4 * b.size());
+    check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+  } catch (const H5Failure& e) {
+    return Error{path, 0, 0, "cannot write trajectory (" + e.what + ")"};
+  }
+  return std::unique_ptr<H5mdWriter>(new H5mdWriter(std::move(impl), path));
+}
+
+Status H5mdWriter::writeFrame(const World& world) {
+  if (!impl_ || !impl_->file.valid()) return Error{path_, 0, 0, "trajectory is closed"};
+  const std::int64_t step = world.stepIndex();
+  const double time = world.time();
+  const ParticleStore& p = world.particles();
+  const BodyStore& b = world.bodies();
+  Impl& m = *impl_;
+  try {
+    m.position.append(H5T_NATIVE_DOUBLE, p.position.data()->data(), step, time);
+    m.velocity.append(H5T_NATIVE_DOUBLE, p.velocity.data()->data(), step, time);
+    for (std::size_t i = 0; i < p.size(); ++i) m.bodyIndex[i] = static_cast<std::int32_t>(p.body[i].value);
+    m.particleBody.append(H5T_NATIVE_INT32, m.bodyIndex.data(), step, time);
+
+    const std::size_t nb = b.size();
+    for (std::size_t i = 0; i < nb; ++i)
+      for (int k = 0; k < 3; ++k) m.bodyVec3[3 * i + k] = b.state[i].position[k];
+    m.bodyPosition.append(H5T_NATIVE_DOUBLE, m.bodyVec3.data(), step, time);
+    for (std::size_t i = 0; i < nb; ++i) {
+      const Quat q = b.info[i].kind == BodyKind::Deformable ? Quat::Identity() : b.shapeOrientation(BodyId(i));
+      m.bodyQuat[4 * i + 0] = q.w();
+      m.bodyQuat[4 * i + 1] = q.x();
+      m.bodyQuat[4 * i + 2] = q.y();
+      m.bodyQuat[4 * i + 3] = q.z();
+    }
+    m.bodyOrientation.append(H5T_NATIVE_DOUBLE, m.bodyQuat.data(), step, time);
+    for (std::size_t i = 0; i < nb; ++i)
+      for (int k = 0; k < 3; ++k) m.bodyVec3[3 * i + k] = b.state[i].linearVelocity[k];
+    m.bodyVelocity.append(H5T_NATIVE_DOUBLE, m.bodyVec3.data(), step, time);
+    for (std::size_t i = 0; i < nb; ++i)
+      for (int k = 0; k < 3; ++k) m.bodyVec3[3 * i + k] = b.state[i].angularVelocity[k];
+    m.bodyAngularVelocity.append(H5T_NATIVE_DOUBLE, m.bodyVec3.data(), step, time);
+
+    const EnergyReport e = world.energy();
+    const double kinetic = e.kinetic, potential = e.potential, total = e.total();
+    m.kinetic.append(H5T_NATIVE_DOUBLE, &kinetic, step, time);
+    m.potential.append(H5T_NATIVE_DOUBLE, &potential, step, time);
+    m.total.append(H5T_NATIVE_DOUBLE, &total, step, time);
+    const Vec3 lin = world.linearMomentum();
+    const Vec3 ang = world.angularMomentum();
+    m.linearMomentum.append(H5T_NATIVE_DOUBLE, lin.data(), step, time);
+    m.angularMomentum.append(H5T_NATIVE_DOUBLE, ang.data(), step, time);
+
+    check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");
+  } catch (const H5Failure& e) {
+    return Error{path_, 0, 0, "cannot write frame (" + e.what + ")"};
+  }
+  times_.push_back(time);
+  steps_.push_back(step);
+  return okStatus();
+}
+
+Status H5mdWriter::writeSidecar() const {
+  XdmfFrames f;
+  f.h5Path = path_;
+  f.particles = impl_ ? impl_->particles : 0;
+  f.time = times_;
+  f.step = steps_;
+  return writeXdmf(f);
+}
+
+Status H5mdWriter::close() {
+  if (!impl_ || !impl_->file.valid()) return okStatus();
+  const herr_t flushed = H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
+  impl_.reset();  // closes every dataset, then the file
+  if (flushed < 0) return Error{path_, 0, 0, "cannot flush trajectory"};
+  return okStatus();
+}
+
+}  // namespace volpar

@@ -1,0 +1,46 @@
+#pragma once
+// The Runner steps a World, writes a trajectory frame every K steps (and the final state), and makes the
+// summary. The world never writes files itself.
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "engine/core/status.hpp"
+#include "engine/io/h5md_writer.hpp"
+#include "engine/world.hpp"
+
+namespace volpar {
+
+struct RunOptions {
+  std::string output;          ///< trajectory path; empty = no file
+  std::int64_t steps = 0;      ///< steps to take
+  int every = 1;               ///< write a frame every `every` steps
+  /// Called now and then with (steps done, steps total); may be empty.
+  std::function<void(std::int64_t, std::int64_t)> progress;
+  /// When set and it becomes true, the run stops after the current step and closes the file cleanly.
+  const std::atomic<bool>* stop = nullptr;
+  /// Testing aid: when > 0, the process kills itself (SIGKILL, no cleanup) right after writing this many
+  /// frames, to show that a killed run leaves a readable file.
+  std::int64_t killAfterFrames = 0;
+};
+
+struct RunSummary {
+  std::int64_t steps = 0;        ///< steps taken
+  std::size_t frames = 0;        ///< frames written
+  std::size_t bodies = 0;
+  std::size_t particles = 0;
+  double wallSeconds = 0.0;      ///< the whole loop, output included [s]
+  double stepSeconds = 0.0;      ///< inside World::step only [s]
+  double stepsPerSecond = 0.0;   ///< steps / stepSeconds
+  EnergyReport energyStart;
+  EnergyReport energyEnd;
+  StageTimes stageTimes;         ///< summed over the run [s]
+  bool interrupted = false;
+  std::string output;
+};
+
+[[nodiscard]] Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunOptions& options);
+
+}  // namespace volpar

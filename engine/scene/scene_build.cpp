@@ -1,0 +1,175 @@
+#include "engine/scene/scene_build.hpp"
+
+#include <cmath>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include "collision/particle_grid.hpp"
+#include "engine/builders/obj_reader.hpp"
+
+namespace volpar {
+
+namespace {
+
+Error at(const SceneDesc& desc, const SourceMark& mark, const std::string& message) {
+  return Error{desc.path, mark.line, mark.column, message};
+}
+
+std::string format(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+std::unique_ptr<SolidShape> primitive(const ShapeDesc& shape) {
+  if (const auto* b = std::get_if<BoxDesc>(&shape)) return std::make_unique<BoxShape>(b->size);
+  if (const auto* s = std::get_if<SphereDesc>(&shape)) return std::make_unique<SphereShape>(s->radius);
+  if (const auto* c = std::get_if<CylinderDesc>(&shape)) return std::make_unique<CylinderShape>(c->radius, c->height);
+  if (const auto* c = std::get_if<CapsuleDesc>(&shape)) return std::make_unique<CapsuleShape>(c->radius, c->length);
+  return nullptr;
+}
+
+std::string instanceName(const BodyDesc& b, int i, int j, int k) {
+  const auto& c = b.repeat.count;
+  if (c[0] * c[1] * c[2] == 1) return b.name;
+  return b.name + "[" + std::to_string(i) + "," + std::to_string(j) + "," + std::to_string(k) + "]";
+}
+
+}  // namespace
+
+Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body) {
+  auto wrap = [&](const Error& e) {
+    return at(desc, body.mark, "body '" + body.name + "': " + e.toString());
+  };
+  if (const auto* list = std::get_if<ParticlesDesc>(&body.shape)) {
+    ParticleListSettings s;
+    s.positions = list->positions;
+    s.radii = list->radii;
+    s.connectors = list->connectors;
+    s.explicitConnectors = list->explicitConnectors;
+    s.reach = list->reach;
+    auto cloud = buildParticleList(s);
+    if (!cloud) return wrap(cloud.error());
+    return cloud;
+  }
+  std::unique_ptr<SolidShape> shape;
+  if (const auto* mesh = std::get_if<MeshDesc>(&body.shape)) {
+    auto m = readObj(mesh->path, mesh->scale);
+    if (!m) return wrap(m.error());
+    if (auto ok = m->makeSolid(); !ok) return wrap(ok.error());
+    shape = std::make_unique<MeshShape>(std::make_shared<const TriangleMesh>(std::move(m.value())));
+  } else {
+    shape = primitive(body.shape);
+  }
+  // refuse absurd particle counts before filling
+  const double s = body.fill.spacing > 0.0 ? body.fill.spacing : 2.0 * body.fill.radius;
+  const double estimate = shape->volume() / latticeCellVolume(body.fill.lattice, s);
+  if (!(estimate < static_cast<double>(kMaxSceneParticles)))
+    return at(desc, body.mark,
+              "body '" + body.name + "': filling the " + shape->describe() + " with particles of radius " +
+                  format(body.fill.radius) + " m would create about " + format(estimate) +
+                  " particles; expected at most " + std::to_string(kMaxSceneParticles) + " (use a larger radius)");
+  auto cloud = fillShape(*shape, body.fill);
+  if (!cloud) return wrap(cloud.error());
+  return cloud;
+}
+
+Result<BuiltScene> buildScene(const SceneDesc& desc) {
+  WorldSettings settings;
+  settings.dt = desc.dt;
+  settings.gravity = desc.gravity;
+  settings.solverIterations = desc.solverIterations;
+  settings.substeps = desc.substeps;
+  BuiltScene built{World(settings), {}, {}};
+  World& world = built.world;
+
+  std::map<std::string, MaterialId> materialIds;
+  for (const auto& [name, mat] : desc.materials) materialIds[name] = world.addMaterial(mat);
+  for (const PlaneDesc& p : desc.planes) world.addPlane(Plane{p.normal, p.offset, materialIds.at(p.material)});
+
+  std::size_t totalParticles = 0;
+  for (std::size_t d = 0; d < desc.bodies.size(); ++d) {
+    const BodyDesc& b = desc.bodies[d];
+    auto cloud = buildCloud(desc, b);
+    if (!cloud) return cloud.error();
+    if (const auto* mesh = std::get_if<MeshDesc>(&b.shape)) built.meshFiles.push_back(mesh->path);
+    const auto& c = b.repeat.count;
+    totalParticles += cloud->size() * static_cast<std::size_t>(c[0] * c[1] * c[2]);
+    if (totalParticles > kMaxSceneParticles)
+      return at(desc, b.mark, "the scene would create more than " + std::to_string(kMaxSceneParticles) + " particles");
+    for (int k = 0; k < c[2]; ++k)
+      for (int j = 0; j < c[1]; ++j)
+        for (int i = 0; i < c[0]; ++i) {
+          BodyDef def;
+          def.name = instanceName(b, i, j, k);
+          def.kind = b.kind;
+          def.material = materialIds.at(b.material);
+          def.position = b.position + Vec3(i * b.repeat.spacing.x(), j * b.repeat.spacing.y(), k * b.repeat.spacing.z());
+          def.orientation = b.orientation;
+          def.linearVelocity = b.velocity;
+          def.angularVelocity = b.angularVelocity;
+          def.connectors = b.connectors;
+          def.particleMass = b.particleMass;
+          def.totalMass = b.mass;
+          auto id = world.addBody(def, *cloud);
+          if (!id) return at(desc, b.mark, id.error().message);
+          built.bodySource.push_back(d);
+        }
+  }
+
+  if (desc.allowInitialOverlap) return built;
+
+  // bodies overlapping each other or a plane at start
+  const ParticleStore& p = world.particles();
+  const BodyStore& bodies = world.bodies();
+  auto overlapError = [&](BodyId a, BodyId b, double depth) {
+    const std::size_t da = built.bodySource[a.index()];
+    const std::size_t db = built.bodySource[b.index()];
+    const BodyDesc& later = desc.bodies[std::max(da, db)];
+    return at(desc, later.mark,
+              "bodies '" + bodies.info[a.index()].name + "' and '" + bodies.info[b.index()].name +
+                  "' overlap at start by " + format(depth) +
+                  " m; expected bodies apart (move them, or set allow_initial_overlap: true if this is intended)");
+  };
+  // the first offending pair of bodies (in particle order), with its deepest overlap
+  double maxRadius = 0.0;
+  for (const double r : p.radius) maxRadius = std::max(maxRadius, r);
+  ParticleGrid grid;
+  grid.build(p.position, 2.0 * maxRadius);
+  BodyId first, second;
+  double deepest = 0.0;
+  for (const auto& [i, j] : grid.pairsWithin(2.0 * maxRadius)) {
+    const BodyId a = p.body[i], b = p.body[j];
+    if (a == b) continue;
+    if (bodies.info[a.index()].kind == BodyKind::Static && bodies.info[b.index()].kind == BodyKind::Static) continue;
+    const double depth = p.radius[i] + p.radius[j] - (p.position[j] - p.position[i]).norm();
+    if (!(depth > 1e-6 * (p.radius[i] + p.radius[j]))) continue;
+    if (!first.valid()) {
+      first = a;
+      second = b;
+    }
+    if (std::minmax(a, b) == std::minmax(first, second)) deepest = std::max(deepest, depth);
+  }
+  if (first.valid()) return overlapError(first, second, deepest);
+  for (std::size_t k = 0; k < world.planes().size(); ++k) {
+    const Plane& pl = world.planes()[k];
+    BodyId sunk;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const BodyId b = p.body[i];
+      if (bodies.info[b.index()].kind == BodyKind::Static || (sunk.valid() && b != sunk)) continue;
+      const double depth = p.radius[i] - (pl.normal.dot(p.position[i]) - pl.offset);
+      if (!(depth > 1e-6 * p.radius[i])) continue;
+      sunk = b;
+      deepest = std::max(deepest, depth);
+    }
+    if (sunk.valid())
+      return at(desc, desc.bodies[built.bodySource[sunk.index()]].mark,
+                "body '" + bodies.info[sunk.index()].name + "' overlaps plane " + std::to_string(k) + " (line " +
+                    std::to_string(desc.planes[k].mark.line) + ") at start by " + format(deepest) +
+                    " m; expected it above the plane (or set allow_initial_overlap: true)");
+  }
+  return built;
+}
+
+}  // namespace volpar

@@ -1,0 +1,104 @@
+#pragma once
+// A scene as plain data, produced by the loader (scene_loader.hpp) from YAML and turned into a World
+// by buildScene (scene_build.hpp). Every field has a documented default; the loader rejects unknown keys.
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "engine/builders/fill.hpp"
+#include "engine/core/body_store.hpp"
+#include "engine/core/connector_store.hpp"
+#include "engine/core/material.hpp"
+#include "engine/core/types.hpp"
+
+namespace volpar {
+
+/// Where something was written in the scene file (1-based; 0 = unknown).
+struct SourceMark {
+  int line = 0;
+  int column = 0;
+};
+
+struct BoxDesc {
+  Vec3 size = Vec3::Zero();  ///< full side lengths [m]
+};
+struct SphereDesc {
+  double radius = 0.0;  ///< [m]
+};
+struct CylinderDesc {
+  double radius = 0.0;  ///< [m]
+  double height = 0.0;  ///< total height along shape z [m]
+};
+struct CapsuleDesc {
+  double radius = 0.0;  ///< [m]
+  double length = 0.0;  ///< segment length along shape z [m]; total length is length + 2 radius
+};
+struct MeshDesc {
+  std::string file;      ///< as written in the scene
+  std::string path;      ///< resolved against the scene's folder
+  double scale = 1.0;    ///< [-]
+};
+struct ParticlesDesc {
+  std::vector<Vec3> positions;  ///< shape frame [m]
+  std::vector<double> radii;    ///< one for all, or one per particle [m]
+  std::vector<std::array<std::uint32_t, 2>> connectors;
+  bool explicitConnectors = false;
+  double reach = 0.0;  ///< [m]; 0 = 1.5 x the largest diameter
+};
+using ShapeDesc = std::variant<BoxDesc, SphereDesc, CylinderDesc, CapsuleDesc, MeshDesc, ParticlesDesc>;
+
+struct RepeatDesc {
+  std::array<int, 3> count{1, 1, 1};
+  Vec3 spacing = Vec3::Zero();  ///< [m], world axes
+};
+
+struct BodyDesc {
+  std::string name;
+  BodyKind kind = BodyKind::Rigid;
+  ShapeDesc shape;
+  FillSettings fill;                        ///< unused for explicit particle lists
+  ConnectorParams connectors;
+  std::string material = "default";
+  std::optional<double> mass;               ///< total [kg]
+  std::optional<double> particleMass;       ///< per particle [kg]
+  Vec3 position = Vec3::Zero();             ///< shape-frame origin [m]
+  Quat orientation = Quat::Identity();
+  Vec3 velocity = Vec3::Zero();             ///< [m/s]
+  Vec3 angularVelocity = Vec3::Zero();      ///< [rad/s]
+  RepeatDesc repeat;
+  SourceMark mark;                          ///< the body's entry in the scene file
+};
+
+struct PlaneDesc {
+  Vec3 normal = Vec3::UnitZ();
+  double offset = 0.0;  ///< [m]
+  std::string material = "default";
+  SourceMark mark;
+};
+
+struct SceneDesc {
+  std::string name;
+  std::string path;   ///< the scene file
+  std::string text;   ///< its full text (stored in the trajectory's /parameters)
+  double dt = 0.0;    ///< [s]
+  std::optional<std::int64_t> steps;
+  std::optional<double> duration;  ///< [s]
+  Vec3 gravity = Vec3(0.0, 0.0, -9.81);
+  int solverIterations = 10;
+  int substeps = 4;
+  int outputEvery = 1;
+  bool allowInitialOverlap = false;
+  std::map<std::string, Material> materials;  ///< always holds "default"
+  std::vector<PlaneDesc> planes;
+  std::vector<BodyDesc> bodies;
+
+  /// Number of steps the scene asks for: steps, or round(duration / dt).
+  [[nodiscard]] std::int64_t stepCount() const;
+};
+
+}  // namespace volpar

@@ -1,0 +1,520 @@
+#include "engine/scene/scene_loader.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <set>
+#include <sstream>
+
+namespace volpar {
+
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// error plumbing: the loader throws LoadError internally; parseScene turns it into a Result.
+
+struct LoadError {
+  Error error;
+};
+
+std::string joinKeys(const std::vector<std::string>& keys) {
+  std::string out;
+  for (std::size_t i = 0; i < keys.size(); ++i) out += (i ? ", " : "") + keys[i];
+  return out;
+}
+
+std::size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j)
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+
+std::string suggestion(const std::string& key, const std::vector<std::string>& allowed) {
+  std::string best;
+  std::size_t bestDist = 3;
+  for (const auto& a : allowed) {
+    const std::size_t d = editDistance(key, a);
+    if (d < bestDist) {
+      bestDist = d;
+      best = a;
+    }
+  }
+  return best.empty() ? "" : " (did you mean '" + best + "'?)";
+}
+
+class Ctx {
+ public:
+  explicit Ctx(std::string path) : path_(std::move(path)) {}
+  [[noreturn]] void fail(const YAML::Mark& m, const std::string& message) const {
+    const bool known = !m.is_null();
+    throw LoadError{Error{path_, known ? m.line + 1 : 0, known ? m.column + 1 : 0, message}};
+  }
+  [[nodiscard]] const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+std::string describe(const YAML::Node& n) {
+  switch (n.Type()) {
+    case YAML::NodeType::Null: return "nothing";
+    case YAML::NodeType::Scalar: return "'" + n.Scalar() + "'";
+    case YAML::NodeType::Sequence: return "a list";
+    case YAML::NodeType::Map: return "a map";
+    default: return "an undefined value";
+  }
+}
+
+/// A YAML map whose keys are checked against an allowed set (unknown and duplicate keys are errors).
+class MapReader {
+ public:
+  MapReader(const Ctx& ctx, const YAML::Node& node, const std::string& what, std::vector<std::string> allowed)
+      : ctx_(ctx), node_(node), what_(what) {
+    if (!node.IsMap()) ctx.fail(node.Mark(), "expected a map for " + what + ", got " + describe(node));
+    std::set<std::string> seen;
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const YAML::Node key = it->first;
+      if (!key.IsScalar()) ctx.fail(key.Mark(), "expected a plain key in " + what);
+      const std::string& k = key.Scalar();
+      if (std::find(allowed.begin(), allowed.end(), k) == allowed.end())
+        ctx.fail(key.Mark(), "unknown key '" + k + "' in " + what + suggestion(k, allowed) +
+                                 "; expected one of: " + joinKeys(allowed));
+      if (!seen.insert(k).second) ctx.fail(key.Mark(), "duplicate key '" + k + "' in " + what);
+      keyMarks_[k] = key.Mark();
+    }
+  }
+  [[nodiscard]] bool has(const std::string& key) const { return keyMarks_.contains(key); }
+  [[nodiscard]] YAML::Node get(const std::string& key) const { return node_[key]; }
+  [[nodiscard]] YAML::Node require(const std::string& key) const {
+    if (!has(key)) ctx_.fail(node_.Mark(), "missing key '" + key + "' in " + what_);
+    return node_[key];
+  }
+  [[nodiscard]] YAML::Mark mark() const { return node_.Mark(); }
+  [[nodiscard]] YAML::Mark keyMark(const std::string& key) const { return keyMarks_.at(key); }
+  [[nodiscard]] std::size_t size() const { return keyMarks_.size(); }
+  [[nodiscard]] const std::string& what() const { return what_; }
+
+ private:
+  const Ctx& ctx_;
+  YAML::Node node_;
+  std::string what_;
+  std::map<std::string, YAML::Mark> keyMarks_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// scalars
+
+std::string text(const Ctx& ctx, const YAML::Node& n, const std::string& what) {
+  if (!n.IsScalar()) ctx.fail(n.Mark(), "expected a string for " + what + ", got " + describe(n));
+  return n.Scalar();
+}
+
+double number(const Ctx& ctx, const YAML::Node& n, const std::string& what) {
+  if (!n.IsScalar()) ctx.fail(n.Mark(), "expected a number for " + what + ", got " + describe(n));
+  std::string s = n.Scalar();
+  if (!s.empty() && s[0] == '+') s.erase(0, 1);
+  double v = 0.0;
+  const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc() || ptr != s.data() + s.size() || s.empty())
+    ctx.fail(n.Mark(), "expected a number for " + what + ", got " + describe(n));
+  if (!std::isfinite(v)) ctx.fail(n.Mark(), "expected a finite number for " + what + ", got " + describe(n));
+  return v;
+}
+
+double positive(const Ctx& ctx, const YAML::Node& n, const std::string& what, const std::string& unit) {
+  const double v = number(ctx, n, what);
+  if (!(v > 0.0)) ctx.fail(n.Mark(), "expected a positive " + what + " [" + unit + "], got " + n.Scalar());
+  return v;
+}
+
+double nonNegative(const Ctx& ctx, const YAML::Node& n, const std::string& what, const std::string& unit) {
+  const double v = number(ctx, n, what);
+  if (!(v >= 0.0)) ctx.fail(n.Mark(), "expected a non-negative " + what + " [" + unit + "], got " + n.Scalar());
+  return v;
+}
+
+double inRange(const Ctx& ctx, const YAML::Node& n, const std::string& what, double lo, double hi) {
+  const double v = number(ctx, n, what);
+  if (!(v >= lo && v <= hi)) {
+    std::ostringstream m;
+    m << "expected " << what << " in [" << lo << ", " << hi << "], got " << n.Scalar();
+    ctx.fail(n.Mark(), m.str());
+  }
+  return v;
+}
+
+std::int64_t integer(const Ctx& ctx, const YAML::Node& n, const std::string& what, std::int64_t lo, std::int64_t hi) {
+  const double v = number(ctx, n, what);
+  if (std::floor(v) != v) ctx.fail(n.Mark(), "expected an integer for " + what + ", got " + n.Scalar());
+  if (v < static_cast<double>(lo) || v > static_cast<double>(hi))
+    ctx.fail(n.Mark(), "expected " + what + " in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
+                           n.Scalar());
+  return static_cast<std::int64_t>(v);
+}
+
+bool boolean(const Ctx& ctx, const YAML::Node& n, const std::string& what) {
+  if (n.IsScalar()) {
+    const std::string& s = n.Scalar();
+    if (s == "true") return true;
+    if (s == "false") return false;
+  }
+  ctx.fail(n.Mark(), "expected true or false for " + what + ", got " + describe(n));
+}
+
+Vec3 vec3(const Ctx& ctx, const YAML::Node& n, const std::string& what) {
+  if (!n.IsSequence() || n.size() != 3)
+    ctx.fail(n.Mark(), "expected a list of 3 numbers [x, y, z] for " + what + ", got " + describe(n));
+  return {number(ctx, n[0], what), number(ctx, n[1], what), number(ctx, n[2], what)};
+}
+
+Vec3 positiveVec3(const Ctx& ctx, const YAML::Node& n, const std::string& what, const std::string& unit) {
+  const Vec3 v = vec3(ctx, n, what);
+  for (int k = 0; k < 3; ++k)
+    if (!(v[k] > 0.0)) ctx.fail(n[k].Mark(), "expected positive components for " + what + " [" + unit + "], got " + n[k].Scalar());
+  return v;
+}
+
+std::string oneOf(const Ctx& ctx, const YAML::Node& n, const std::string& what, const std::vector<std::string>& options) {
+  const std::string s = text(ctx, n, what);
+  if (std::find(options.begin(), options.end(), s) == options.end())
+    ctx.fail(n.Mark(), "unknown " + what + " '" + s + "'" + suggestion(s, options) + "; expected one of: " + joinKeys(options));
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// compound values
+
+Quat rotation(const Ctx& ctx, const YAML::Node& n) {
+  const MapReader m(ctx, n, "orientation", {"axis", "angle", "angle_deg", "quaternion"});
+  if (m.has("quaternion")) {
+    if (m.size() != 1) ctx.fail(m.mark(), "'quaternion' cannot be combined with 'axis' or 'angle' in orientation");
+    const YAML::Node q = m.get("quaternion");
+    if (!q.IsSequence() || q.size() != 4)
+      ctx.fail(q.Mark(), "expected a quaternion [w, x, y, z] of 4 numbers, got " + describe(q));
+    Quat r(number(ctx, q[0], "quaternion"), number(ctx, q[1], "quaternion"), number(ctx, q[2], "quaternion"),
+           number(ctx, q[3], "quaternion"));
+    if (!(r.norm() > 1e-12)) ctx.fail(q.Mark(), "expected a non-zero quaternion [w, x, y, z]");
+    return r.normalized();
+  }
+  const YAML::Node axisNode = m.require("axis");
+  const Vec3 axis = vec3(ctx, axisNode, "rotation axis");
+  if (!(axis.norm() > 1e-12)) ctx.fail(axisNode.Mark(), "expected a non-zero rotation axis, got a zero-length vector");
+  if (m.has("angle") == m.has("angle_deg"))
+    ctx.fail(m.mark(), "expected exactly one of 'angle' [rad] or 'angle_deg' [deg] in orientation");
+  const double angle = m.has("angle") ? number(ctx, m.get("angle"), "angle")
+                                      : number(ctx, m.get("angle_deg"), "angle_deg") * std::numbers::pi / 180.0;
+  return Quat(Eigen::AngleAxisd(angle, axis.normalized()));
+}
+
+/// One rotation, or a list applied in order (each about the world axes).
+Quat orientation(const Ctx& ctx, const YAML::Node& n) {
+  if (n.IsSequence()) {
+    if (n.size() == 0) ctx.fail(n.Mark(), "expected at least one rotation in the orientation list");
+    Quat q = Quat::Identity();
+    for (const auto& r : n) q = rotation(ctx, r) * q;
+    return q.normalized();
+  }
+  return rotation(ctx, n);
+}
+
+Material material(const Ctx& ctx, const YAML::Node& n, const std::string& name) {
+  const MapReader m(ctx, n, "material '" + name + "'", {"density", "restitution", "friction"});
+  Material mat;
+  mat.name = name;
+  if (m.has("density")) mat.density = positive(ctx, m.get("density"), "density", "kg/m^3");
+  if (m.has("restitution")) mat.restitution = inRange(ctx, m.get("restitution"), "restitution", 0.0, 1.0);
+  if (m.has("friction")) mat.friction = nonNegative(ctx, m.get("friction"), "friction", "-");
+  return mat;
+}
+
+PlaneDesc plane(const Ctx& ctx, const YAML::Node& n) {
+  const MapReader m(ctx, n, "plane", {"normal", "offset", "point", "material"});
+  PlaneDesc p;
+  p.mark = {n.Mark().line + 1, n.Mark().column + 1};
+  const YAML::Node nn = m.require("normal");
+  const Vec3 normal = vec3(ctx, nn, "plane normal");
+  if (!(normal.norm() > 1e-12)) ctx.fail(nn.Mark(), "expected a non-zero plane normal");
+  p.normal = normal.normalized();
+  if (m.has("offset") && m.has("point")) ctx.fail(m.mark(), "expected either 'offset' or 'point' for a plane, not both");
+  if (m.has("offset")) p.offset = number(ctx, m.get("offset"), "plane offset");
+  if (m.has("point")) p.offset = p.normal.dot(vec3(ctx, m.get("point"), "plane point"));
+  if (m.has("material")) p.material = text(ctx, m.get("material"), "material");
+  return p;
+}
+
+ShapeDesc shape(const Ctx& ctx, const YAML::Node& n, const std::filesystem::path& sceneDir) {
+  const MapReader m(ctx, n, "shape", {"box", "sphere", "cylinder", "capsule", "mesh", "particles"});
+  if (m.size() != 1)
+    ctx.fail(m.mark(), "expected exactly one shape kind (box, sphere, cylinder, capsule, mesh or particles)");
+  if (m.has("box")) {
+    const MapReader b(ctx, m.get("box"), "box", {"size"});
+    return BoxDesc{positiveVec3(ctx, b.require("size"), "box size", "m")};
+  }
+  if (m.has("sphere")) {
+    const MapReader s(ctx, m.get("sphere"), "sphere", {"radius"});
+    return SphereDesc{positive(ctx, s.require("radius"), "sphere radius", "m")};
+  }
+  if (m.has("cylinder")) {
+    const MapReader c(ctx, m.get("cylinder"), "cylinder", {"radius", "height"});
+    return CylinderDesc{positive(ctx, c.require("radius"), "cylinder radius", "m"),
+                        positive(ctx, c.require("height"), "cylinder height", "m")};
+  }
+  if (m.has("capsule")) {
+    const MapReader c(ctx, m.get("capsule"), "capsule", {"radius", "length"});
+    return CapsuleDesc{positive(ctx, c.require("radius"), "capsule radius", "m"),
+                       nonNegative(ctx, c.require("length"), "capsule segment length", "m")};
+  }
+  if (m.has("mesh")) {
+    const MapReader me(ctx, m.get("mesh"), "mesh", {"file", "scale"});
+    MeshDesc d;
+    const YAML::Node fileNode = me.require("file");
+    d.file = text(ctx, fileNode, "mesh file");
+    std::filesystem::path p(d.file);
+    if (p.is_relative()) p = sceneDir / p;
+    d.path = p.lexically_normal().string();
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(p, ec))
+      ctx.fail(fileNode.Mark(), "cannot open mesh file '" + d.file + "' (looked for " + d.path +
+                                    "); expected a path to an OBJ file, relative to the scene file");
+    if (me.has("scale")) d.scale = positive(ctx, me.get("scale"), "mesh scale", "-");
+    return d;
+  }
+  const MapReader pm(ctx, m.get("particles"), "particles", {"positions", "radius", "radii", "connectors", "reach"});
+  ParticlesDesc d;
+  const YAML::Node pos = pm.require("positions");
+  if (!pos.IsSequence() || pos.size() == 0)
+    ctx.fail(pos.Mark(), "expected a non-empty list of positions [[x, y, z], ...], got " + describe(pos));
+  for (const auto& p : pos) d.positions.push_back(vec3(ctx, p, "particle position"));
+  if (pm.has("radius") == pm.has("radii"))
+    ctx.fail(pm.mark(), "expected exactly one of 'radius' (all particles) or 'radii' (one per particle)");
+  if (pm.has("radius")) {
+    d.radii.push_back(positive(ctx, pm.get("radius"), "particle radius", "m"));
+  } else {
+    const YAML::Node r = pm.get("radii");
+    if (!r.IsSequence() || r.size() != pos.size())
+      ctx.fail(r.Mark(), "expected a list of " + std::to_string(pos.size()) + " radii, one per position");
+    for (const auto& x : r) d.radii.push_back(positive(ctx, x, "particle radius", "m"));
+  }
+  if (pm.has("connectors")) {
+    const YAML::Node c = pm.get("connectors");
+    if (!c.IsSequence()) ctx.fail(c.Mark(), "expected a list of particle index pairs [[i, j], ...]");
+    d.explicitConnectors = true;
+    const auto maxIndex = static_cast<std::int64_t>(pos.size()) - 1;
+    for (const auto& pair : c) {
+      if (!pair.IsSequence() || pair.size() != 2) ctx.fail(pair.Mark(), "expected a particle index pair [i, j]");
+      const auto i = integer(ctx, pair[0], "particle index", 0, maxIndex);
+      const auto j = integer(ctx, pair[1], "particle index", 0, maxIndex);
+      if (i == j) ctx.fail(pair.Mark(), "a connector must join two different particles");
+      d.connectors.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j)});
+    }
+  }
+  if (pm.has("reach")) {
+    if (d.explicitConnectors) ctx.fail(pm.keyMark("reach"), "'reach' cannot be combined with explicit 'connectors'");
+    d.reach = positive(ctx, pm.get("reach"), "reach", "m");
+  }
+  return d;
+}
+
+FillSettings fill(const Ctx& ctx, const YAML::Node& n) {
+  const MapReader m(ctx, n, "fill", {"lattice", "radius", "spacing", "reach"});
+  FillSettings f;
+  if (m.has("lattice")) f.lattice = oneOf(ctx, m.get("lattice"), "lattice", {"cubic", "hcp"}) == "hcp" ? Lattice::Hcp : Lattice::Cubic;
+  f.radius = positive(ctx, m.require("radius"), "particle radius", "m");
+  if (m.has("spacing")) f.spacing = positive(ctx, m.get("spacing"), "lattice spacing", "m");
+  if (m.has("reach")) {
+    const YAML::Node r = m.get("reach");
+    f.reach = number(ctx, r, "reach");
+    if (!(f.reach > 1.0 && f.reach <= 4.0))
+      ctx.fail(r.Mark(), "expected reach in (1, 4] lattice spacings (nearest neighbours sit at 1), got " + r.Scalar());
+  }
+  return f;
+}
+
+ConnectorParams connectors(const Ctx& ctx, const YAML::Node& n, BodyKind kind) {
+  ConnectorParams c;
+  if (n.IsScalar()) {
+    oneOf(ctx, n, "connector kind", {"rigid", "rods"});
+    return c;
+  }
+  const MapReader m(ctx, n, "connectors", {"rods", "springs"});
+  if (m.size() != 1) ctx.fail(m.mark(), "expected exactly one of 'rods' or 'springs' in connectors");
+  if (m.has("rods")) {
+    const YAML::Node r = m.get("rods");
+    if (r.IsNull() || (r.IsMap() && r.size() == 0)) return c;
+    const MapReader rm(ctx, r, "rods", {"strength"});
+    if (rm.has("strength")) c.breakLimit = positive(ctx, rm.get("strength"), "rod strength", "N");
+    return c;
+  }
+  if (kind != BodyKind::Deformable)
+    ctx.fail(m.keyMark("springs"), "springs need 'kind: deformable'; rigid and static bodies are joined by rods");
+  const MapReader sm(ctx, m.get("springs"), "springs", {"stiffness", "damping", "strain_limit"});
+  c.kind = ConnectorKind::Spring;
+  c.stiffness = positive(ctx, sm.require("stiffness"), "spring stiffness", "N/m");
+  if (sm.has("damping")) c.damping = nonNegative(ctx, sm.get("damping"), "spring damping", "N s/m");
+  if (sm.has("strain_limit")) c.breakLimit = positive(ctx, sm.get("strain_limit"), "spring strain limit", "-");
+  return c;
+}
+
+RepeatDesc repeat(const Ctx& ctx, const YAML::Node& n) {
+  const MapReader m(ctx, n, "repeat", {"count", "spacing"});
+  RepeatDesc r;
+  const YAML::Node c = m.require("count");
+  if (!c.IsSequence() || c.size() != 3) ctx.fail(c.Mark(), "expected a list of 3 counts [nx, ny, nz], got " + describe(c));
+  std::int64_t total = 1;
+  for (int k = 0; k < 3; ++k) {
+    r.count[static_cast<std::size_t>(k)] = static_cast<int>(integer(ctx, c[k], "repeat count", 1, 1000000));
+    total *= r.count[static_cast<std::size_t>(k)];
+  }
+  if (total > 10000000) ctx.fail(c.Mark(), "repeat would create " + std::to_string(total) + " bodies; expected at most 10000000");
+  r.spacing = vec3(ctx, m.require("spacing"), "repeat spacing");
+  return r;
+}
+
+BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std::filesystem::path& sceneDir) {
+  const MapReader m(ctx, n, "body",
+                    {"name", "kind", "shape", "fill", "connectors", "material", "mass", "particle_mass", "position",
+                     "orientation", "velocity", "angular_velocity", "repeat"});
+  BodyDesc b;
+  b.mark = {n.Mark().line + 1, n.Mark().column + 1};
+  b.name = m.has("name") ? text(ctx, m.get("name"), "body name") : "body" + std::to_string(index);
+  if (m.has("kind")) {
+    const std::string k = oneOf(ctx, m.get("kind"), "body kind", {"rigid", "deformable", "static"});
+    b.kind = k == "rigid" ? BodyKind::Rigid : k == "deformable" ? BodyKind::Deformable : BodyKind::Static;
+  }
+  b.shape = shape(ctx, m.require("shape"), sceneDir);
+  const bool isList = std::holds_alternative<ParticlesDesc>(b.shape);
+  if (isList && m.has("fill"))
+    ctx.fail(m.keyMark("fill"), "an explicit particle list takes no 'fill'; radii and reach go under 'particles'");
+  if (!isList) b.fill = fill(ctx, m.require("fill"));
+  if (m.has("connectors")) b.connectors = connectors(ctx, m.get("connectors"), b.kind);
+  else if (b.kind == BodyKind::Deformable)
+    ctx.fail(m.mark(), "missing key 'connectors' in body '" + b.name + "'; a deformable body needs {springs: {...}} or rods");
+  if (m.has("material")) b.material = text(ctx, m.get("material"), "material");
+  if (m.has("mass") && m.has("particle_mass")) ctx.fail(m.mark(), "expected at most one of 'mass' or 'particle_mass'");
+  if (m.has("mass")) b.mass = positive(ctx, m.get("mass"), "body mass", "kg");
+  if (m.has("particle_mass")) b.particleMass = positive(ctx, m.get("particle_mass"), "particle mass", "kg");
+  if (m.has("position")) b.position = vec3(ctx, m.get("position"), "position");
+  if (m.has("orientation")) b.orientation = orientation(ctx, m.get("orientation"));
+  if (m.has("velocity")) b.velocity = vec3(ctx, m.get("velocity"), "velocity");
+  if (m.has("angular_velocity")) b.angularVelocity = vec3(ctx, m.get("angular_velocity"), "angular velocity");
+  if (m.has("repeat")) b.repeat = repeat(ctx, m.get("repeat"));
+  if (b.kind == BodyKind::Static && (b.velocity.norm() > 0.0 || b.angularVelocity.norm() > 0.0))
+    ctx.fail(m.mark(), "a static body cannot have a velocity");
+  return b;
+}
+
+SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::path& sceneDir) {
+  const MapReader m(ctx, root, "scene",
+                    {"name", "dt", "steps", "duration", "gravity", "solver", "output", "materials", "planes",
+                     "bodies", "allow_initial_overlap"});
+  SceneDesc s;
+  s.materials["default"] = Material{"default"};
+  if (m.has("name")) s.name = text(ctx, m.get("name"), "scene name");
+  const YAML::Node dt = m.require("dt");
+  s.dt = positive(ctx, dt, "time step dt", "s");
+  if (s.dt > 1.0) ctx.fail(dt.Mark(), "expected a time step dt of at most 1 s, got " + dt.Scalar());
+  if (m.has("steps") == m.has("duration"))
+    ctx.fail(m.mark(), "expected exactly one of 'steps' or 'duration' [s] in scene");
+  if (m.has("steps")) s.steps = integer(ctx, m.get("steps"), "steps", 1, 1000000000000);
+  if (m.has("duration")) {
+    const YAML::Node d = m.get("duration");
+    s.duration = positive(ctx, d, "duration", "s");
+    if (*s.duration / s.dt > 1e12) ctx.fail(d.Mark(), "duration / dt exceeds 1e12 steps");
+  }
+  if (m.has("gravity")) s.gravity = vec3(ctx, m.get("gravity"), "gravity");
+  if (m.has("solver")) {
+    const MapReader sm(ctx, m.get("solver"), "solver", {"iterations", "substeps"});
+    if (sm.has("iterations")) s.solverIterations = static_cast<int>(integer(ctx, sm.get("iterations"), "solver iterations", 1, 1000));
+    if (sm.has("substeps")) s.substeps = static_cast<int>(integer(ctx, sm.get("substeps"), "substeps", 1, 1000));
+  }
+  if (m.has("output")) {
+    const MapReader om(ctx, m.get("output"), "output", {"every"});
+    if (om.has("every")) s.outputEvery = static_cast<int>(integer(ctx, om.get("every"), "output every", 1, 1000000000));
+  }
+  if (m.has("allow_initial_overlap")) s.allowInitialOverlap = boolean(ctx, m.get("allow_initial_overlap"), "allow_initial_overlap");
+  if (m.has("materials")) {
+    const YAML::Node mats = m.get("materials");
+    if (!mats.IsMap()) ctx.fail(mats.Mark(), "expected a map of materials {name: {density, restitution, friction}}");
+    std::set<std::string> seen;
+    for (auto it = mats.begin(); it != mats.end(); ++it) {
+      const std::string name = text(ctx, it->first, "material name");
+      if (!seen.insert(name).second) ctx.fail(it->first.Mark(), "duplicate material '" + name + "'");
+      s.materials[name] = material(ctx, it->second, name);
+    }
+  }
+  auto checkMaterial = [&](const std::string& name, const YAML::Node& where) {
+    if (s.materials.contains(name)) return;
+    std::vector<std::string> names;
+    for (const auto& [k, v] : s.materials) names.push_back(k);
+    ctx.fail(where.Mark(), "unknown material '" + name + "'" + suggestion(name, names) + "; expected one of: " + joinKeys(names));
+  };
+  if (m.has("planes")) {
+    const YAML::Node planes = m.get("planes");
+    if (!planes.IsSequence()) ctx.fail(planes.Mark(), "expected a list of planes");
+    for (const auto& p : planes) {
+      s.planes.push_back(plane(ctx, p));
+      if (p.IsMap() && p["material"]) checkMaterial(s.planes.back().material, p["material"]);
+    }
+  }
+  const YAML::Node bodies = m.require("bodies");
+  if (!bodies.IsSequence() || bodies.size() == 0) ctx.fail(bodies.Mark(), "expected a non-empty list of bodies");
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < bodies.size(); ++i) {
+    s.bodies.push_back(body(ctx, bodies[i], i, sceneDir));
+    if (bodies[i]["material"]) checkMaterial(s.bodies.back().material, bodies[i]["material"]);
+    if (!names.insert(s.bodies.back().name).second)
+      ctx.fail(bodies[i].Mark(), "duplicate body name '" + s.bodies.back().name + "'");
+  }
+  return s;
+}
+
+}  // namespace
+
+std::int64_t SceneDesc::stepCount() const {
+  if (steps) return *steps;
+  if (duration) return std::max<std::int64_t>(1, static_cast<std::int64_t>(std::llround(*duration / dt)));
+  return 0;
+}
+
+Result<SceneDesc> parseScene(const std::string& sceneText, const std::string& path) {
+  const Ctx ctx(path);
+  try {
+    YAML::Node root;
+    try {
+      root = YAML::Load(sceneText);
+    } catch (const YAML::ParserException& e) {
+      ctx.fail(e.mark, "invalid YAML: " + e.msg);
+    }
+    if (!root.IsDefined() || root.IsNull()) return Error{path, 1, 1, "the scene is empty; expected a map with dt, steps or duration, and bodies"};
+    const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+    SceneDesc s = scene(ctx, root, dir);
+    s.path = path;
+    s.text = sceneText;
+    if (s.name.empty()) s.name = std::filesystem::path(path).stem().string();
+    return s;
+  } catch (const LoadError& e) {
+    return e.error;
+  } catch (const YAML::Exception& e) {
+    return Error{path, e.mark.is_null() ? 0 : e.mark.line + 1, e.mark.is_null() ? 0 : e.mark.column + 1, e.msg};
+  }
+}
+
+Result<SceneDesc> loadScene(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) return Error{path, 0, 0, "cannot open scene file"};
+  std::ostringstream text;
+  text << file.rdbuf();
+  return parseScene(text.str(), path);
+}
+
+}  // namespace volpar

@@ -1,0 +1,273 @@
+#include "engine/world.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include "dynamics/deformable_integrator.hpp"
+#include "dynamics/mass_properties.hpp"
+#include "dynamics/rigid_integrator.hpp"
+
+namespace volpar {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+
+}  // namespace
+
+World::World(const WorldSettings& settings) : settings_(settings) {}
+
+MaterialId World::addMaterial(const Material& material) {
+  materials_.push_back(material);
+  return MaterialId(materials_.size() - 1);
+}
+
+void World::addPlane(const Plane& plane) {
+  Plane p = plane;
+  p.normal.normalize();
+  planes_.push_back(p);
+}
+
+Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
+  const std::size_t n = cloud.size();
+  if (n == 0) return Error{"", 0, 0, "body '" + def.name + "' has no particles"};
+  if (!def.material.valid() || def.material.index() >= materials_.size())
+    return Error{"", 0, 0, "body '" + def.name + "' refers to an unknown material"};
+  const Material& material = materials_[def.material.index()];
+
+  // particle masses: explicit, or density x the volume each particle stands for
+  std::vector<double> masses(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (def.totalMass) masses[i] = *def.totalMass / static_cast<double>(n);
+    else if (def.particleMass) masses[i] = *def.particleMass;
+    else masses[i] = material.density * cloud.volumes[i];
+    if (!(masses[i] > 0.0) || !std::isfinite(masses[i]))
+      return Error{"", 0, 0, "body '" + def.name + "' would get a particle mass of " + std::to_string(masses[i]) +
+                                 " kg; expected a positive, finite mass"};
+  }
+
+  const MassProperties mp = computeMassProperties(cloud.positions, cloud.radii, masses);
+  const PrincipalAxes axes = principalAxes(mp.inertia);
+
+  BodyInfo info;
+  info.name = def.name;
+  info.kind = def.kind;
+  info.material = def.material;
+  info.mass = mp.mass;
+  info.inertiaLocal = axes.moments;
+  info.principalInShape = axes.rotation;
+  info.comInShape = mp.centre;
+
+  BodyState state;
+  state.orientation = (def.orientation * axes.rotation).normalized();
+  state.position = def.position + def.orientation * mp.centre;
+  if (def.kind != BodyKind::Static) {
+    state.linearVelocity = def.linearVelocity;
+    state.angularVelocity = def.angularVelocity;
+    state.invMass = 1.0 / mp.mass;
+  }
+  if (def.kind == BodyKind::Rigid) {
+    state.invInertiaLocal = axes.moments.cwiseInverse();
+    updateWorldInertia(state);
+  }
+
+  const BodyId id(bodies_.size());
+  const ParticleId first = particles_.grow(n);
+  info.particles.reserve(n);
+  const Quat toPrincipal = axes.rotation.conjugate();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t p = first.index() + i;
+    info.particles.emplace_back(p);
+    particles_.radius[p] = cloud.radii[i];
+    particles_.mass[p] = masses[i];
+    particles_.invMass[p] = def.kind == BodyKind::Static ? 0.0 : 1.0 / masses[i];
+    particles_.body[p] = id;
+    particles_.local[p] = toPrincipal * (cloud.positions[i] - mp.centre);
+    if (cloud.surface[i]) {
+      particles_.flags[p] |= kParticleSurface;
+      // rigid and static: principal frame; deformable: world frame
+      const Vec3 n0 = cloud.normals[i];
+      particles_.normalIndex[p] =
+          normals_.add(def.kind == BodyKind::Deformable ? Vec3(def.orientation * n0) : Vec3(toPrincipal * n0));
+    }
+  }
+  for (const auto& c : cloud.connectors) {
+    const ParticleId a(first.index() + c[0]);
+    const ParticleId b(first.index() + c[1]);
+    const double rest = (cloud.positions[c[1]] - cloud.positions[c[0]]).norm();
+    const ConnectorId cid = connectors_.add(a, b, rest, def.connectors);
+    if (def.kind == BodyKind::Deformable) deformableConnectors_.push_back(cid);
+  }
+  bodies_.add(state, std::move(info));
+
+  if (def.kind == BodyKind::Deformable) {
+    deformableBodies_.push_back(id);
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::size_t p = first.index() + i;
+      particles_.position[p] = def.position + def.orientation * cloud.positions[i];
+      particles_.velocity[p] =
+          def.linearVelocity + def.angularVelocity.cross(particles_.position[p] - state.position);
+      deformableParticles_.emplace_back(p);
+    }
+  } else {
+    if (def.kind == BodyKind::Rigid) rigidBodies_.push_back(id);
+    updateRigidParticles(id);
+  }
+  return id;
+}
+
+StepStatus World::step() {
+  const auto t0 = Clock::now();
+  stats_ = StepStats{};
+  stats_.step = stepIndex_ + 1;
+
+  auto t = Clock::now();
+  integrateVelocities();
+  stats_.time.integrateVelocities = secondsSince(t);
+
+  t = Clock::now();
+  integratePositions();
+  stats_.time.integratePositions = secondsSince(t);
+
+  ++stepIndex_;
+  stats_.time.total = secondsSince(t0);
+  return finiteState() ? StepStatus::Ok : StepStatus::NonFinite;
+}
+
+void World::integrateVelocities() {
+  for (const BodyId id : rigidBodies_) integrateRigidVelocity(bodies_.state[id.index()], settings_.gravity, settings_.dt);
+}
+
+void World::integratePositions() {
+  for (const BodyId id : rigidBodies_) {
+    integrateRigidPose(bodies_.state[id.index()], settings_.dt);
+    updateRigidParticles(id);
+  }
+  DeformableStepInput in;
+  in.particles = deformableParticles_;
+  in.connectors = deformableConnectors_;
+  in.gravity = settings_.gravity;
+  in.dt = settings_.dt;
+  in.substeps = settings_.substeps;
+  integrateDeformables(particles_, connectors_, in, scratch_);
+  updateDeformableBodyStates();
+}
+
+void World::updateRigidParticles(BodyId id) {
+  const BodyState& s = bodies_.state[id.index()];
+  const Mat3 r = s.orientation.toRotationMatrix();
+  for (const ParticleId p : bodies_.info[id.index()].particles) {
+    const Vec3 arm = r * particles_.local[p.index()];
+    particles_.position[p.index()] = s.position + arm;
+    particles_.velocity[p.index()] = s.linearVelocity + s.angularVelocity.cross(arm);
+  }
+}
+
+void World::updateDeformableBodyStates() {
+  // centre of mass, its velocity, and the angular velocity I^-1 L about it
+  for (const BodyId id : deformableBodies_) {
+    BodyState& s = bodies_.state[id.index()];
+    const BodyInfo& info = bodies_.info[id.index()];
+    Vec3 x = Vec3::Zero(), v = Vec3::Zero();
+    for (const ParticleId p : info.particles) {
+      x += particles_.mass[p.index()] * particles_.position[p.index()];
+      v += particles_.mass[p.index()] * particles_.velocity[p.index()];
+    }
+    x /= info.mass;
+    v /= info.mass;
+    Mat3 inertia = Mat3::Zero();
+    Vec3 l = Vec3::Zero();
+    for (const ParticleId p : info.particles) {
+      const std::size_t i = p.index();
+      const Vec3 d = particles_.position[i] - x;
+      const double m = particles_.mass[i];
+      const double own = 0.4 * m * particles_.radius[i] * particles_.radius[i];
+      inertia += (own + m * d.squaredNorm()) * Mat3::Identity() - m * d * d.transpose();
+      l += m * d.cross(particles_.velocity[i] - v);
+    }
+    s.position = x;
+    s.linearVelocity = v;
+    s.angularVelocity = inertia.ldlt().solve(l);
+  }
+}
+
+void World::syncParticles() {
+  for (const BodyId id : rigidBodies_) {
+    updateWorldInertia(bodies_.state[id.index()]);
+    updateRigidParticles(id);
+  }
+}
+
+bool World::finiteState() const {
+  for (const BodyId id : rigidBodies_) {
+    const BodyState& s = bodies_.state[id.index()];
+    if (!finite(s.position) || !finite(s.linearVelocity) || !finite(s.angularVelocity) ||
+        !std::isfinite(s.orientation.w()))
+      return false;
+  }
+  for (const ParticleId p : deformableParticles_)
+    if (!finite(particles_.position[p.index()]) || !finite(particles_.velocity[p.index()])) return false;
+  return true;
+}
+
+Vec3 World::particleNormal(ParticleId id) const {
+  const std::int32_t k = particles_.normalIndex[id.index()];
+  if (k < 0) return Vec3::Zero();
+  const BodyId b = particles_.body[id.index()];
+  if (bodies_.info[b.index()].kind == BodyKind::Deformable) return normals_[k];
+  return bodies_.state[b.index()].orientation * normals_[k];
+}
+
+EnergyReport World::energy() const {
+  EnergyReport e;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const BodyState& s = bodies_.state[b];
+    const BodyInfo& info = bodies_.info[b];
+    if (info.kind == BodyKind::Static) continue;
+    if (info.kind == BodyKind::Rigid) {
+      e.kinetic += 0.5 * info.mass * s.linearVelocity.squaredNorm() + rotationalEnergy(s, info.inertiaLocal);
+      e.potential -= info.mass * settings_.gravity.dot(s.position);
+    } else {
+      for (const ParticleId p : info.particles) {
+        const std::size_t i = p.index();
+        e.kinetic += 0.5 * particles_.mass[i] * particles_.velocity[i].squaredNorm();
+        e.potential -= particles_.mass[i] * settings_.gravity.dot(particles_.position[i]);
+      }
+    }
+  }
+  e.potential += springEnergy(particles_, connectors_, deformableConnectors_);
+  return e;
+}
+
+Vec3 World::linearMomentum() const {
+  Vec3 p = Vec3::Zero();
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const BodyInfo& info = bodies_.info[b];
+    if (info.kind == BodyKind::Static) continue;
+    p += info.mass * bodies_.state[b].linearVelocity;
+  }
+  return p;
+}
+
+Vec3 World::angularMomentum() const {
+  Vec3 l = Vec3::Zero();
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const BodyInfo& info = bodies_.info[b];
+    const BodyState& s = bodies_.state[b];
+    if (info.kind == BodyKind::Rigid) {
+      l += info.mass * s.position.cross(s.linearVelocity) + volpar::angularMomentum(s, info.inertiaLocal);
+    } else if (info.kind == BodyKind::Deformable) {
+      for (const ParticleId p : info.particles) {
+        const std::size_t i = p.index();
+        l += particles_.mass[i] * particles_.position[i].cross(particles_.velocity[i]);
+      }
+    }
+  }
+  return l;
+}
+
+}  // namespace volpar

@@ -1,0 +1,111 @@
+#pragma once
+// The World owns every store and runs the step pipeline of DESIGN section 1:
+//   1. integrate velocities (gravity; deformable particles by XPBD substeps)
+//   2-5. collision and contact response stages (broadphase, particle contacts, narrow phase, solver)
+//   6. integrate positions, update particle world positions
+// A step allocates nothing once the world is built, and never writes files: a Runner watches the
+// world and writes trajectory frames.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "collision/normal_cache.hpp"
+#include "engine/builders/particle_cloud.hpp"
+#include "engine/core/body_store.hpp"
+#include "engine/core/connector_store.hpp"
+#include "engine/core/material.hpp"
+#include "engine/core/particle_store.hpp"
+#include "engine/core/status.hpp"
+#include "engine/core/step_stats.hpp"
+#include "engine/world_settings.hpp"
+
+namespace volpar {
+
+/// How to turn a ParticleCloud into a body.
+struct BodyDef {
+  std::string name;
+  BodyKind kind = BodyKind::Rigid;
+  MaterialId material;
+  Vec3 position = Vec3::Zero();            ///< origin of the shape frame, world [m]
+  Quat orientation = Quat::Identity();     ///< shape frame -> world
+  Vec3 linearVelocity = Vec3::Zero();      ///< of the centre of mass, world [m/s]
+  Vec3 angularVelocity = Vec3::Zero();     ///< world [rad/s]
+  ConnectorParams connectors;              ///< rods for rigid and static bodies
+  std::optional<double> particleMass;      ///< [kg] per particle; default density x particle volume
+  std::optional<double> totalMass;         ///< [kg] spread evenly over the particles
+};
+
+/// Energies of the whole world [J].
+struct EnergyReport {
+  double kinetic = 0.0;
+  double potential = 0.0;  ///< gravitational (relative to the origin) plus elastic
+  [[nodiscard]] double total() const { return kinetic + potential; }
+};
+
+class World {
+ public:
+  explicit World(const WorldSettings& settings);
+
+  MaterialId addMaterial(const Material& material);
+  void addPlane(const Plane& plane);
+  /// Creates a body from a builder's cloud. Fails on an empty cloud or a non-positive mass.
+  Result<BodyId> addBody(const BodyDef& def, const ParticleCloud& cloud);
+
+  /// Advances the world by settings().dt.
+  StepStatus step();
+
+  [[nodiscard]] const WorldSettings& settings() const { return settings_; }
+  [[nodiscard]] const ParticleStore& particles() const { return particles_; }
+  [[nodiscard]] const BodyStore& bodies() const { return bodies_; }
+  [[nodiscard]] const ConnectorStore& connectors() const { return connectors_; }
+  [[nodiscard]] const NormalCache& normals() const { return normals_; }
+  [[nodiscard]] const std::vector<Material>& materials() const { return materials_; }
+  [[nodiscard]] const std::vector<Plane>& planes() const { return planes_; }
+  [[nodiscard]] const StepStats& stats() const { return stats_; }
+  [[nodiscard]] double time() const { return static_cast<double>(stepIndex_) * settings_.dt; }
+  [[nodiscard]] std::int64_t stepIndex() const { return stepIndex_; }
+
+  /// World-frame outward normal of a surface particle (zero for interior particles).
+  [[nodiscard]] Vec3 particleNormal(ParticleId id) const;
+  [[nodiscard]] EnergyReport energy() const;
+  /// Total linear momentum [kg m/s] and angular momentum about the origin [kg m^2/s].
+  [[nodiscard]] Vec3 linearMomentum() const;
+  [[nodiscard]] Vec3 angularMomentum() const;
+
+  /// Mutable access for tests and tools that set up states directly (never during a step). Particles of
+  /// rigid and static bodies follow their body: syncParticles() overwrites them.
+  [[nodiscard]] BodyState& bodyState(BodyId id) { return bodies_.state[id.index()]; }
+  [[nodiscard]] ParticleStore& editParticles() { return particles_; }
+  /// Recomputes particle positions and velocities of rigid bodies from their body states.
+  void syncParticles();
+
+ private:
+  void integrateVelocities();
+  void integratePositions();
+  void updateRigidParticles(BodyId id);
+  [[nodiscard]] bool finiteState() const;
+  void updateDeformableBodyStates();
+
+  WorldSettings settings_;
+  std::vector<Material> materials_;
+  std::vector<Plane> planes_;
+  ParticleStore particles_;
+  ConnectorStore connectors_;
+  BodyStore bodies_;
+  NormalCache normals_;
+
+  // cached index lists, rebuilt when bodies are added
+  std::vector<BodyId> rigidBodies_;
+  std::vector<BodyId> deformableBodies_;
+  std::vector<ParticleId> deformableParticles_;
+  std::vector<ConnectorId> deformableConnectors_;
+
+  // scratch reused across steps (no allocation inside step())
+  std::vector<Vec3> scratch_;
+
+  std::int64_t stepIndex_ = 0;
+  StepStats stats_;
+};
+
+}  // namespace volpar

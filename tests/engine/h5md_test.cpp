@@ -1,0 +1,227 @@
+// Trajectory files: what is written reads back (through the HDF5 C API), the layout is chunked and
+// compressed, and a run that is killed or interrupted leaves a readable file.
+
+#include <gtest/gtest.h>
+#include <hdf5.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "engine/io/h5md_reader.hpp"
+#include "engine/io/xdmf_writer.hpp"
+#include "engine/run_loop.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace volpar {
+namespace {
+
+const char* kScene = R"(
+name: tumble
+dt: 0.005
+steps: 40
+output: {every: 10}
+bodies:
+  - name: crate
+    shape: {box: {size: [0.3, 0.2, 0.1]}}
+    fill: {radius: 0.05}
+    velocity: [1, 0, 2]
+    angular_velocity: [0, 3, 1]
+  - name: ball
+    shape: {sphere: {radius: 0.2}}
+    fill: {radius: 0.05, lattice: hcp}
+    position: [1, 0, 0]
+)";
+
+std::vector<double> readDoubles(hid_t file, const char* name) {
+  const hid_t ds = H5Dopen2(file, name, H5P_DEFAULT);
+  EXPECT_GE(ds, 0) << name;
+  const hid_t space = H5Dget_space(ds);
+  const hssize_t n = H5Sget_simple_extent_npoints(space);
+  std::vector<double> out(static_cast<std::size_t>(n));
+  EXPECT_GE(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()), 0);
+  H5Sclose(space);
+  H5Dclose(ds);
+  return out;
+}
+
+TEST(H5md, RoundTripOfEveryFrame) {
+  auto desc = test::sceneFromString(kScene);
+  ASSERT_TRUE(desc.ok()) << desc.error().toString();
+  auto built = buildScene(*desc);
+  ASSERT_TRUE(built.ok());
+  World& world = built->world;
+
+  // reference: the same scene stepped by hand
+  auto reference = buildScene(*desc);
+  std::vector<std::vector<Vec3>> expected{reference->world.particles().position};
+  std::vector<std::vector<Vec3>> expectedBodies{{reference->world.bodies().state[0].position, reference->world.bodies().state[1].position}};
+  for (int i = 1; i <= 40; ++i) {
+    ASSERT_EQ(reference->world.step(), StepStatus::Ok);
+    if (i % 10 == 0) {
+      expected.push_back(reference->world.particles().position);
+      expectedBodies.push_back({reference->world.bodies().state[0].position, reference->world.bodies().state[1].position});
+    }
+  }
+
+  const std::string path = test::tempDir() + "/tumble.h5";
+  TrajectoryMeta meta{desc->name, "inline.yaml", desc->text, {}, 10, 40};
+  RunOptions options;
+  options.output = path;
+  options.steps = 40;
+  options.every = 10;
+  auto summary = runWorld(world, meta, options);
+  ASSERT_TRUE(summary.ok()) << summary.error().toString();
+  EXPECT_EQ(summary->frames, 5u);
+
+  auto reader = H5mdReader::open(path);
+  ASSERT_TRUE(reader.ok()) << reader.error().toString();
+  auto s = (*reader)->summary();
+  ASSERT_TRUE(s.ok()) << s.error().toString();
+  EXPECT_EQ(s->creatorName, "volpar");
+  EXPECT_EQ(s->sceneName, "tumble");
+  EXPECT_EQ(s->sceneText, desc->text);
+  EXPECT_EQ(s->frames, 5u);
+  EXPECT_EQ(s->particles, world.particles().size());
+  EXPECT_EQ(s->bodyNames, (std::vector<std::string>{"crate", "ball"}));
+  EXPECT_EQ(s->step, (std::vector<std::int64_t>{0, 10, 20, 30, 40}));
+  for (std::size_t t = 0; t < 5; ++t) {
+    EXPECT_DOUBLE_EQ(s->time[t], static_cast<double>(s->step[t]) * 0.005);
+    auto pos = (*reader)->positions(t);
+    ASSERT_TRUE(pos.ok());
+    EXPECT_EQ(pos.value(), expected[t]) << "frame " << t;  // bit for bit
+    auto bodies = (*reader)->bodyPositions(t);
+    ASSERT_TRUE(bodies.ok());
+    EXPECT_EQ(bodies.value(), expectedBodies[t]);
+  }
+  // the last frame's orientation is the shape frame's
+  auto q = (*reader)->bodyOrientations(4);
+  ASSERT_TRUE(q.ok());
+  EXPECT_LT(q.value()[0].angularDistance(world.bodies().shapeOrientation(BodyId(0u))), 1e-15);
+  // energies as observables
+  EXPECT_DOUBLE_EQ(s->kinetic.back(), world.energy().kinetic);
+  EXPECT_DOUBLE_EQ(s->total.front(), summary->energyStart.total());
+
+  // the layout through the plain C API: chunked and compressed, radius and mass as fixed datasets
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  const hid_t ds = H5Dopen2(f, "/particles/all/position/value", H5P_DEFAULT);
+  const hid_t dcpl = H5Dget_create_plist(ds);
+  EXPECT_EQ(H5Pget_layout(dcpl), H5D_CHUNKED);
+  EXPECT_GE(H5Pget_nfilters(dcpl), 2);  // shuffle + deflate
+  H5Pclose(dcpl);
+  H5Dclose(ds);
+  const std::vector<double> radius = readDoubles(f, "/particles/all/radius");
+  EXPECT_EQ(radius, world.particles().radius);
+  const std::vector<double> mass = readDoubles(f, "/particles/bodies/mass");
+  EXPECT_DOUBLE_EQ(mass[0], world.bodies().info[0].mass);
+  H5Fclose(f);
+
+  // the sidecar references the file and every frame
+  std::ifstream x(sidecarPath(path));
+  ASSERT_TRUE(x.good());
+  const std::string xml((std::istreambuf_iterator<char>(x)), std::istreambuf_iterator<char>());
+  EXPECT_NE(xml.find("tumble.h5:/particles/all/position/value"), std::string::npos);
+  EXPECT_NE(xml.find("<Grid Name=\"step_40\""), std::string::npos);
+  EXPECT_NE(xml.find("Dimensions=\"5 " + std::to_string(world.particles().size()) + " 3\""), std::string::npos);
+}
+
+/// Starts `volpar run` on a long scene with extra arguments; after `waitMs` (if > 0) sends `signal`.
+/// Returns the wait status.
+int runAndSignal(const std::string& scene, const std::string& out, const std::vector<std::string>& extra, int signal,
+                 int waitMs) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int devnull = ::open("/dev/null", O_WRONLY);
+    dup2(devnull, STDOUT_FILENO);
+    dup2(devnull, STDERR_FILENO);
+    std::vector<std::string> args{"volpar", "run", scene, "-o", out};
+    args.insert(args.end(), extra.begin(), extra.end());
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    execv(test::volparBinary().c_str(), argv.data());
+    _exit(127);
+  }
+  if (waitMs > 0) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(waitMs));
+    kill(pid, signal);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return status;
+}
+
+std::string writeLongScene(const std::string& dir) {
+  const std::string scene = dir + "/long.yaml";
+  std::ofstream(scene) << R"(
+dt: 0.001
+steps: 100000000
+output: {every: 20}
+bodies:
+  - shape: {box: {size: [1, 1, 1]}}
+    fill: {radius: 0.05}
+    angular_velocity: [0.1, 2, 0.1]
+)";
+  return scene;
+}
+
+void expectReadable(const std::string& path) {
+  auto reader = H5mdReader::open(path);
+  ASSERT_TRUE(reader.ok()) << reader.error().toString();
+  auto s = (*reader)->summary();
+  ASSERT_TRUE(s.ok()) << s.error().toString();
+  ASSERT_GE(s->frames, 2u);
+  // frames every 20 steps; an interrupted run adds its final state
+  for (std::size_t t = 1; t < s->frames; ++t) {
+    EXPECT_GT(s->step[t], s->step[t - 1]);
+    if (t + 1 < s->frames) {
+      EXPECT_EQ(s->step[t] % 20, 0);
+    }
+  }
+  auto last = (*reader)->positions(s->frames - 1);
+  ASSERT_TRUE(last.ok()) << last.error().toString();
+  for (const Vec3& p : last.value()) ASSERT_TRUE(p.allFinite());
+}
+
+TEST(H5md, KilledRunKeepsEveryFrameWrittenBeforeTheKill) {
+  // the process sends itself SIGKILL (no cleanup at all) right after its 3rd, 17th or 40th frame
+  const std::string dir = test::tempDir();
+  const std::string scene = writeLongScene(dir);
+  for (const int frames : {3, 17, 40}) {
+    const std::string out = dir + "/killed" + std::to_string(frames) + ".h5";
+    const int status = runAndSignal(scene, out, {"--kill-after-frames", std::to_string(frames)}, 0, 0);
+    ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+    expectReadable(out);
+    auto reader = H5mdReader::open(out);
+    ASSERT_TRUE(reader.ok());
+    EXPECT_EQ((*reader)->summary()->frames, static_cast<std::size_t>(frames));
+  }
+}
+
+TEST(H5md, TerminatedRunClosesTheFileCleanly) {
+  const std::string dir = test::tempDir();
+  const std::string out = dir + "/terminated.h5";
+  const int status = runAndSignal(writeLongScene(dir), out, {}, SIGTERM, 500);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  expectReadable(out);
+}
+
+TEST(H5md, InterruptedRunClosesTheFileWithItsLastFrame) {
+  const std::string dir = test::tempDir();
+  const std::string out = dir + "/interrupted.h5";
+  const int status = runAndSignal(writeLongScene(dir), out, {}, SIGINT, 700);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  expectReadable(out);
+  EXPECT_TRUE(std::filesystem::exists(sidecarPath(out)));
+}
+
+}  // namespace
+}  // namespace volpar

@@ -1,0 +1,57 @@
+#include "tests/support/test_support.hpp"
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+
+namespace volpar::test {
+
+std::string sourcePath(const std::string& relative) { return std::string(VOLPAR_SOURCE_DIR) + "/" + relative; }
+
+std::string tempDir() {
+  static std::mt19937_64 rng(std::random_device{}());
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string name = info ? std::string(info->test_suite_name()) + "_" + info->name() : "volpar";
+  for (char& c : name)
+    if (c == '/') c = '_';
+  const auto dir = std::filesystem::temp_directory_path() / ("volpar_" + name + "_" + std::to_string(rng() % 1000000));
+  std::filesystem::create_directories(dir);
+  return dir.string();
+}
+
+Result<SceneDesc> sceneFromString(const std::string& text, const std::string& name) {
+  return parseScene(text, sourcePath("scenes/" + name));
+}
+
+World worldFromString(const std::string& text) {
+  auto desc = sceneFromString(text);
+  if (!desc) {
+    ADD_FAILURE() << desc.error().toString();
+    return World(WorldSettings{});
+  }
+  auto built = buildScene(*desc);
+  if (!built) {
+    ADD_FAILURE() << built.error().toString();
+    return World(WorldSettings{});
+  }
+  return std::move(built->world);
+}
+
+CommandResult runCommand(const std::string& command) {
+  CommandResult r;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buf{};
+  std::size_t n = 0;
+  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.output.append(buf.data(), n);
+  const int status = pclose(pipe);
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string volparBinary() { return VOLPAR_BINARY; }
+
+}  // namespace volpar::test

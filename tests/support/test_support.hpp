@@ -1,0 +1,36 @@
+#pragma once
+// Helpers shared by the test suites: scenes from strings, paths, running the CLI.
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "engine/scene/scene_build.hpp"
+#include "engine/scene/scene_loader.hpp"
+#include "engine/world.hpp"
+
+namespace volpar::test {
+
+/// Absolute path of a file in the source tree, e.g. sourcePath("scenes/examples/demo.yaml").
+std::string sourcePath(const std::string& relative);
+
+/// A fresh temporary directory for one test (removed at exit).
+std::string tempDir();
+
+/// Parses a scene given as text; `name` is the file name used in messages (resolved in scenes/).
+Result<SceneDesc> sceneFromString(const std::string& text, const std::string& name = "inline.yaml");
+
+/// Parses and builds a scene from text; fails the test on error.
+World worldFromString(const std::string& text);
+
+struct CommandResult {
+  int exitCode = -1;
+  std::string output;  ///< stdout and stderr together
+};
+/// Runs a shell command and captures its output.
+CommandResult runCommand(const std::string& command);
+
+/// The volpar executable built with these tests.
+std::string volparBinary();
+
+}  // namespace volpar::test

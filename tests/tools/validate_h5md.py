@@ -1,0 +1,223 @@
+#!/usr/bin/python3
+"""Independent check of a volpar trajectory with h5py (no volpar code involved).
+
+Validates the H5MD 1.1 layout documented in docs/trajectory-format.md, the consistency of the data
+(rigid bodies stay rigid, centres of mass match the particles, energies add up, bodies in free flight
+follow v(t) = v0 + g t), the stored scene text and the XDMF sidecar.
+
+usage: validate_h5md.py FILE.h5 [--scene SCENE.yaml] [--frames N]
+       validate_h5md.py --self-test FILE.h5   # damaged copies of FILE must be rejected
+"""
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+
+import h5py
+import numpy as np
+
+
+class Invalid(Exception):
+    pass
+
+
+def expect(cond, message):
+    if not cond:
+        raise Invalid(message)
+
+
+def element(group, name, tail_shape, dtype_kind):
+    """An H5MD time-dependent element: value [T, *tail], step [T] (int), time [T] (float)."""
+    expect(name in group, f"missing element {group.name}/{name}")
+    g = group[name]
+    for key in ("value", "step", "time"):
+        expect(key in g, f"missing {g.name}/{key}")
+    value, step, time = g["value"], g["step"], g["time"]
+    expect(value.shape[1:] == tuple(tail_shape), f"{value.name} has shape {value.shape}, expected [T, {tail_shape}]")
+    expect(value.dtype.kind == dtype_kind, f"{value.name} has dtype {value.dtype}")
+    expect(step.dtype.kind == "i" and time.dtype.kind == "f", f"{g.name} step/time types {step.dtype}/{time.dtype}")
+    expect(step.shape == time.shape == (value.shape[0],), f"{g.name}: step/time/value lengths differ")
+    expect(value.chunks is not None and value.compression is not None, f"{value.name} is not chunked and compressed")
+    return value[()], step[()], time[()]
+
+
+def validate(path, scene=None, frames=None):
+    f = h5py.File(path, "r")
+    # /h5md
+    expect("h5md" in f, "missing /h5md")
+    expect(list(f["h5md"].attrs.get("version", [])) == [1, 1], "/h5md version is not [1, 1]")
+    expect("name" in f["h5md/author"].attrs, "missing /h5md/author name")
+    expect(f["h5md/creator"].attrs["name"] == "volpar", "creator is not volpar")
+    expect(len(f["h5md/creator"].attrs["version"]) > 0, "missing creator version")
+    par = f["parameters"]
+    dt = float(par.attrs["dt"])
+    g = np.array(par.attrs["gravity"], dtype=float)
+    expect(dt > 0 and g.shape == (3,), "bad /parameters dt or gravity")
+
+    # /particles/all
+    all_ = f["particles/all"]
+    expect(all_["box"].attrs["dimension"] == 3, "box dimension is not 3")
+    expect([b.decode() for b in all_["box"].attrs["boundary"]] == ["none"] * 3, "box boundary is not none")
+    radius = all_["radius"][()]
+    mass = all_["mass"][()]
+    P = radius.shape[0]
+    expect(P > 0 and np.all(radius > 0) and np.all(mass > 0), "radius/mass must be positive")
+    pos, step, time = element(all_, "position", (P, 3), "f")
+    vel, vstep, vtime = element(all_, "velocity", (P, 3), "f")
+    body, bstep, _ = element(all_, "body", (P,), "i")
+    T = pos.shape[0]
+    expect(T >= 1, "no frames")
+    if frames is not None:
+        expect(T == frames, f"{T} frames, expected {frames}")
+    expect(np.all(np.diff(step) > 0), "steps not increasing")
+    expect(np.allclose(time, step * dt, rtol=1e-12, atol=0), "time != step * dt")
+    expect(np.array_equal(step, vstep) and np.array_equal(step, bstep), "elements sampled at different steps")
+    expect(np.all(np.isfinite(pos)) and np.all(np.isfinite(vel)), "non-finite positions or velocities")
+
+    # /particles/bodies
+    bodies = f["particles/bodies"]
+    names = bodies["name"][()]
+    kinds = [k.decode() for k in bodies["kind"][()]]
+    B = len(names)
+    expect(set(kinds) <= {"rigid", "deformable", "static"}, f"unknown body kinds {set(kinds)}")
+    expect(body.min() >= 0 and body.max() < B, "particle body index out of range")
+    bpos, _, _ = element(bodies, "position", (B, 3), "f")
+    bq, _, _ = element(bodies, "orientation", (B, 4), "f")
+    bvel, _, _ = element(bodies, "velocity", (B, 3), "f")
+    bomega, _, _ = element(bodies, "angular_velocity", (B, 3), "f")
+    bmass = bodies["mass"][()]
+    expect(np.allclose(np.linalg.norm(bq, axis=2), 1.0, atol=1e-12), "orientations are not unit quaternions")
+
+    def rot(q):  # w, x, y, z
+        w, x, y, z = q
+        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+    scale = max(1.0, float(np.abs(pos).max()))
+    for b in range(B):
+        idx = np.nonzero(body[0] == b)[0]
+        expect(len(idx) > 0, f"body {b} has no particles")
+        expect(np.isclose(mass[idx].sum(), bmass[b], rtol=1e-12), f"body {b} mass != sum of particle masses")
+        for t in range(T):
+            com = (mass[idx, None] * pos[t, idx]).sum(axis=0) / mass[idx].sum()
+            expect(np.allclose(com, bpos[t, b], atol=1e-9 * scale), f"body {b} frame {t}: centre != particle mean")
+        if kinds[b] == "deformable":
+            continue
+        # rigid: particles move with the body's pose, velocities are v + w x r
+        r0 = rot(bq[0, b])
+        local = (pos[0, idx] - bpos[0, b]) @ r0  # R0^T (p - c) row-wise
+        for t in range(T):
+            rt = rot(bq[t, b])
+            expected = bpos[t, b] + local @ rt.T
+            expect(np.allclose(pos[t, idx], expected, atol=1e-9 * scale), f"body {b} frame {t}: not rigid")
+            arm = pos[t, idx] - bpos[t, b]
+            expect(np.allclose(vel[t, idx], bvel[t, b] + np.cross(bomega[t, b], arm), atol=1e-9 * max(1.0, np.abs(vel).max())),
+                   f"body {b} frame {t}: particle velocity != v + w x r")
+
+    # observables: energies add up; kinetic energy from the particles' own data where all bodies are point-like
+    kin, ostep, otime = element(f["observables"], "kinetic_energy", (), "f")
+    pot, _, _ = element(f["observables"], "potential_energy", (), "f")
+    tot, _, _ = element(f["observables"], "total_energy", (), "f")
+    element(f["observables"], "linear_momentum", (3,), "f")
+    element(f["observables"], "angular_momentum", (3,), "f")
+    expect(np.array_equal(ostep, step), "observables sampled at different steps")
+    expect(np.all(kin >= 0), "negative kinetic energy")
+    expect(np.allclose(tot, kin + pot, rtol=1e-12, atol=1e-12 * np.abs(pot).max()), "total != kinetic + potential")
+    # translational kinetic energy of the bodies never exceeds the total kinetic energy
+    trans = 0.5 * (bmass[None, :] * (bvel ** 2).sum(axis=2)).sum(axis=1)
+    expect(np.all(trans <= kin * (1 + 1e-9) + 1e-12), "kinetic energy below the bodies' translational energy")
+
+    # /parameters
+    text = par["scene"][()]
+    text = text.decode() if isinstance(text, bytes) else text
+    if scene is not None:
+        with open(scene, encoding="utf-8") as s:
+            expect(s.read() == text, "stored scene text differs from the scene file")
+    expect(len(par.attrs["engine_version"]) > 0, "missing engine version")
+    planes = par["planes"][()]
+    expect(planes.ndim == 2 and planes.shape[1] == 4, "planes must be [n, 4]")
+
+    # the XDMF sidecar, if present
+    side = os.path.splitext(path)[0] + ".xdmf2"
+    if os.path.exists(side):
+        grids = ET.parse(side).getroot().findall("./Domain/Grid/Grid")
+        expect(len(grids) == T, f"sidecar has {len(grids)} frames, file has {T}")
+        for i, grid in enumerate(grids):
+            expect(np.isclose(float(grid.find("Time").get("Value")), time[i], rtol=1e-15), f"sidecar time {i}")
+            items = grid.find("Geometry/DataItem").findall("DataItem")
+            expect(items[1].get("Dimensions") == f"{T} {P} 3", f"sidecar dimensions of frame {i}")
+            expect(items[0].text.split()[0] == str(i), f"sidecar hyperslab of frame {i}")
+    f.close()
+    return T, P, B
+
+
+def free_flight(path):
+    """In a scene without contacts every free body's velocity is v0 + g t."""
+    with h5py.File(path, "r") as f:
+        g = np.array(f["parameters"].attrs["gravity"])
+        t = f["particles/bodies/position/time"][()]
+        v = f["particles/bodies/velocity/value"][()]
+        kinds = [k.decode() for k in f["particles/bodies/kind"][()]]
+        for b, kind in enumerate(kinds):
+            if kind == "static":
+                expect(np.all(v[:, b] == 0), f"static body {b} moves")
+                continue
+            expected = v[0, b] + (t - t[0])[:, None] * g[None, :]
+            expect(np.allclose(v[:, b], expected, atol=1e-9), f"body {b} is not in free flight")
+
+
+def self_test(path):
+    """Damaged copies must be rejected: proves the checks can fail."""
+    validate(path)
+    damages = {
+        "version": lambda f: f["h5md"].attrs.__setitem__("version", np.array([1, 0], dtype=np.int32)),
+        "rigidity": lambda f: f["particles/all/position/value"].__setitem__((1, 0, 0), f["particles/all/position/value"][1, 0, 0] + 1e-3),
+        "time": lambda f: f["particles/all/position/time"].__setitem__(1, 123.0),
+        "energy": lambda f: f["observables/total_energy/value"].__setitem__(0, f["observables/total_energy/value"][0] + 1.0),
+        "body index": lambda f: f["particles/all/body/value"].__setitem__((0, 0), 999),
+        "missing velocity": lambda f: f["particles/all"].__delitem__("velocity"),
+    }
+    tmp = tempfile.mkdtemp()
+    try:
+        for name, damage in damages.items():
+            copy = os.path.join(tmp, "damaged.h5")
+            shutil.copy(path, copy)
+            with h5py.File(copy, "r+") as f:
+                damage(f)
+            try:
+                validate(copy)
+            except (Invalid, KeyError) as e:
+                print(f"rejected damaged file ({name}): {e}")
+                continue
+            raise SystemExit(f"self-test: damage '{name}' was not detected")
+    finally:
+        shutil.rmtree(tmp)
+    print("self-test passed")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("file")
+    ap.add_argument("--scene")
+    ap.add_argument("--frames", type=int)
+    ap.add_argument("--self-test", action="store_true")
+    ap.add_argument("--free-flight", action="store_true", help="also check v(t) = v0 + g t for every body")
+    a = ap.parse_args()
+    if a.self_test:
+        self_test(a.file)
+        return
+    try:
+        T, P, B = validate(a.file, a.scene, a.frames)
+        if a.free_flight:
+            free_flight(a.file)
+    except Invalid as e:
+        print(f"{a.file}: INVALID: {e}", file=sys.stderr)
+        sys.exit(1)
+    print(f"{a.file}: valid H5MD 1.1 volpar trajectory ({T} frames, {P} particles, {B} bodies)")
+
+
+if __name__ == "__main__":
+    main()
