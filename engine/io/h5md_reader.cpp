@@ -153,26 +153,27 @@ Result<TrajectorySummary> H5mdReader::summary() const {
   return s;
 }
 
-Result<std::vector<Vec3>> H5mdReader::positions(std::size_t frame) const {
+namespace {
+
+Result<std::vector<Vec3>> vec3Row(hid_t file, const std::string& path, const std::string& name, std::size_t frame) {
   try {
-    const std::vector<double> raw = readRow(impl_->file, "particles/all/position/value", frame);
+    const std::vector<double> raw = readRow(file, name, frame);
     std::vector<Vec3> out(raw.size() / 3);
     for (std::size_t i = 0; i < out.size(); ++i) out[i] = Vec3(raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]);
     return out;
   } catch (const ReadFailure& e) {
-    return Error{impl_->path, 0, 0, e.what};
+    return Error{path, 0, 0, e.what};
   }
 }
 
+}  // namespace
+
+Result<std::vector<Vec3>> H5mdReader::positions(std::size_t frame) const {
+  return vec3Row(impl_->file, impl_->path, "particles/all/position/value", frame);
+}
+
 Result<std::vector<Vec3>> H5mdReader::bodyPositions(std::size_t frame) const {
-  try {
-    const std::vector<double> raw = readRow(impl_->file, "particles/bodies/position/value", frame);
-    std::vector<Vec3> out(raw.size() / 3);
-    for (std::size_t i = 0; i < out.size(); ++i) out[i] = Vec3(raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]);
-    return out;
-  } catch (const ReadFailure& e) {
-    return Error{impl_->path, 0, 0, e.what};
-  }
+  return vec3Row(impl_->file, impl_->path, "particles/bodies/position/value", frame);
 }
 
 Result<std::vector<Quat>> H5mdReader::bodyOrientations(std::size_t frame) const {

@@ -50,8 +50,9 @@ struct Spin {
   double maxEDrift = 0.0;
 };
 
-Spin spinFor(const std::string& angularVelocity, double seconds) {
-  World w = test::worldFromString(R"(
+/// A 0.2 x 0.4 x 0.6 m brick without gravity, spun at `angularVelocity` ("[x, y, z]"), dt = 1/240 s.
+World spinningBrick(const std::string& angularVelocity) {
+  return test::worldFromString(R"(
 dt: 0.004166666666666667
 steps: 1
 gravity: [0, 0, 0]
@@ -59,6 +60,10 @@ bodies:
   - shape: {box: {size: [0.2, 0.4, 0.6]}}
     fill: {radius: 0.05}
     angular_velocity: )" + angularVelocity + "\n");
+}
+
+Spin spinFor(const std::string& angularVelocity, double seconds) {
+  World w = spinningBrick(angularVelocity);
   const BodyInfo& info = w.bodies().info[0];
   // principal moments: x largest, y intermediate, z smallest
   EXPECT_GT(info.inertiaLocal.x(), info.inertiaLocal.y());
@@ -93,14 +98,7 @@ TEST(TorqueFree, IntermediateAxisFlipsWhileMomentumAndEnergyHold) {
 
 TEST(TorqueFree, MajorAndMinorAxisSpinsAreStable) {
   for (const char* w : {"[5, 0.001, 0.001]", "[0.001, 0.001, 5]"}) {
-    World world = test::worldFromString(std::string(R"(
-dt: 0.004166666666666667
-steps: 1
-gravity: [0, 0, 0]
-bodies:
-  - shape: {box: {size: [0.2, 0.4, 0.6]}}
-    fill: {radius: 0.05}
-    angular_velocity: )") + w + "\n");
+    World world = spinningBrick(w);
     const BodyState& s = world.bodies().state[0];
     const Vec3 axis = s.angularVelocity.normalized();
     for (int i = 0; i < 2400; ++i) ASSERT_EQ(world.step(), StepStatus::Ok);
