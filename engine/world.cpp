@@ -103,6 +103,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     if (def.kind == BodyKind::Deformable) deformableConnectors_.push_back(cid);
   }
   bodies_.add(state, std::move(info));
+  bodyBoxes_.emplace_back();
 
   if (def.kind == BodyKind::Deformable) {
     deformableBodies_.push_back(id);
@@ -113,14 +114,21 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
           def.linearVelocity + def.angularVelocity.cross(particles_.position[p] - state.position);
       deformableParticles_.emplace_back(p);
     }
+    updateDeformableBodyState(id);
   } else {
     if (def.kind == BodyKind::Rigid) rigidBodies_.push_back(id);
     updateRigidParticles(id);
   }
+  for (std::size_t i = 0; i < n; ++i) maxRadius_ = std::max(maxRadius_, cloud.radii[i]);
+  broadphase_.setMargin(settings_.broadphaseMargin > 0.0 ? settings_.broadphaseMargin : maxRadius_);
+  broadphase_.addBody(id, bodyBoxes_[id.index()], def.kind == BodyKind::Static);
+  contactFinder_.addBody(id, particles_, bodies_);
+  contactsStale_ = true;
   return id;
 }
 
 StepStatus World::step() {
+  if (contactsStale_) refreshContacts();
   const auto t0 = Clock::now();
   stats_ = StepStats{};
   stats_.step = stepIndex_ + 1;
@@ -134,8 +142,45 @@ StepStatus World::step() {
   stats_.time.integratePositions = secondsSince(t);
 
   ++stepIndex_;
+  const bool finiteNow = finiteState();
+  if (finiteNow) detectCollisions();
   stats_.time.total = secondsSince(t0);
-  return finiteState() ? StepStatus::Ok : StepStatus::NonFinite;
+  return finiteNow ? StepStatus::Ok : StepStatus::NonFinite;
+}
+
+void World::refreshContacts() {
+  const StepStats keep = stats_;
+  detectCollisions();
+  const StepStats found = stats_;
+  stats_ = keep;
+  // the counters describe the current contacts; the timings stay those of the last step
+  stats_.bodyPairs = found.bodyPairs;
+  stats_.planePairs = found.planePairs;
+  stats_.contacts = found.contacts;
+  stats_.contactGroups = found.contactGroups;
+  stats_.maxPenetration = found.maxPenetration;
+}
+
+void World::detectCollisions() {
+  auto t = Clock::now();
+  for (const BodyId id : rigidBodies_)
+    broadphase_.moveBody(id, bodyBoxes_[id.index()], bodies_.state[id.index()].linearVelocity * settings_.dt);
+  for (const BodyId id : deformableBodies_)
+    broadphase_.moveBody(id, bodyBoxes_[id.index()], bodies_.state[id.index()].linearVelocity * settings_.dt);
+  stats_.proxyMoves = broadphase_.reinsertions();
+  broadphase_.findPairs(planes_, bodyPairs_, planePairs_);
+  stats_.time.broadphase = secondsSince(t);
+
+  t = Clock::now();
+  contactFinder_.find(particles_, bodies_, connectors_, bodyPairs_, planePairs_, planes_, bodyBoxes_, contacts_);
+  stats_.time.particleContacts = secondsSince(t);
+  stats_.bodyPairs = bodyPairs_.size();
+  stats_.planePairs = planePairs_.size();
+  stats_.contacts = contacts_.contacts.size();
+  stats_.contactGroups = contacts_.groups.size();
+  stats_.maxPenetration = 0.0;
+  for (const ParticleContact& c : contacts_.contacts) stats_.maxPenetration = std::max(stats_.maxPenetration, c.depth);
+  contactsStale_ = false;
 }
 
 void World::integrateVelocities() {
@@ -160,16 +205,23 @@ void World::integratePositions() {
 void World::updateRigidParticles(BodyId id) {
   const BodyState& s = bodies_.state[id.index()];
   const Mat3 r = s.orientation.toRotationMatrix();
+  Aabb box;
   for (const ParticleId p : bodies_.info[id.index()].particles) {
     const Vec3 arm = r * particles_.local[p.index()];
     particles_.position[p.index()] = s.position + arm;
     particles_.velocity[p.index()] = s.linearVelocity + s.angularVelocity.cross(arm);
+    box.extend(Aabb::sphere(particles_.position[p.index()], particles_.radius[p.index()]));
   }
+  bodyBoxes_[id.index()] = box;
 }
 
 void World::updateDeformableBodyStates() {
+  for (const BodyId id : deformableBodies_) updateDeformableBodyState(id);
+}
+
+void World::updateDeformableBodyState(BodyId id) {
   // centre of mass, its velocity, and the angular velocity I^-1 L about it
-  for (const BodyId id : deformableBodies_) {
+  {
     BodyState& s = bodies_.state[id.index()];
     const BodyInfo& info = bodies_.info[id.index()];
     Vec3 x = Vec3::Zero(), v = Vec3::Zero();
@@ -192,6 +244,10 @@ void World::updateDeformableBodyStates() {
     s.position = x;
     s.linearVelocity = v;
     s.angularVelocity = inertia.ldlt().solve(l);
+    Aabb box;
+    for (const ParticleId p : info.particles)
+      box.extend(Aabb::sphere(particles_.position[p.index()], particles_.radius[p.index()]));
+    bodyBoxes_[id.index()] = box;
   }
 }
 

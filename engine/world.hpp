@@ -1,16 +1,23 @@
 #pragma once
-// The World owns every store and runs the step pipeline of DESIGN section 1:
-//   1. integrate velocities (gravity; deformable particles by XPBD substeps)
-//   2-5. collision and contact response stages (broadphase, particle contacts, narrow phase, solver)
-//   6. integrate positions, update particle world positions
-// A step allocates nothing once the world is built, and never writes files: a Runner watches the
-// world and writes trajectory frames.
+// The World owns every store and runs the step pipeline of DESIGN section 1. Collision detection runs at
+// the end of a step, on the positions the step produced, so that contacts() always describes the current
+// state (what a trajectory frame or a cross-check sees) and the next step's solver uses it:
+//   1. integrate velocities (gravity)
+//   2. contact response (the solver)
+//   3. integrate positions (rigid poses; deformable particles by XPBD substeps), particle world positions
+//   4. broadphase (dynamic AABB trees) -> body pairs
+//   5. particle contacts in each body pair, body-plane pair and deformable body
+// Over a run this is the same sequence as detection-then-response inside each step. A step allocates
+// nothing once the world is built (buffers keep their capacity), and never writes files: a Runner
+// watches the world and writes trajectory frames.
 
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "collision/broadphase.hpp"
 #include "collision/normal_cache.hpp"
+#include "collision/particle_contacts.hpp"
 #include "engine/builders/particle_cloud.hpp"
 #include "engine/core/body_store.hpp"
 #include "engine/core/connector_store.hpp"
@@ -64,6 +71,17 @@ class World {
   [[nodiscard]] const std::vector<Plane>& planes() const { return planes_; }
   [[nodiscard]] const StepStats& stats() const { return stats_; }
   [[nodiscard]] double time() const { return static_cast<double>(stepIndex_) * settings_.dt; }
+  /// Contacts of the current state (call refreshContacts() after adding bodies).
+  [[nodiscard]] const ContactSet& contacts() const { return contacts_; }
+  /// Candidate body pairs and body-plane pairs of the current state, sorted.
+  [[nodiscard]] const std::vector<BodyPair>& bodyPairs() const { return bodyPairs_; }
+  [[nodiscard]] const std::vector<BodyPlanePair>& planePairs() const { return planePairs_; }
+  /// Tight world boxes of the bodies' particle spheres [B].
+  [[nodiscard]] const std::vector<Aabb>& bodyBoxes() const { return bodyBoxes_; }
+  [[nodiscard]] const Broadphase& broadphase() const { return broadphase_; }
+  [[nodiscard]] const ContactFinder& contactFinder() const { return contactFinder_; }
+  /// Runs collision detection on the current state (done by step(); needed after adding bodies).
+  void refreshContacts();
   [[nodiscard]] std::int64_t stepIndex() const { return stepIndex_; }
 
   /// World-frame outward normal of a surface particle (zero for interior particles).
@@ -83,9 +101,11 @@ class World {
  private:
   void integrateVelocities();
   void integratePositions();
+  void detectCollisions();
   void updateRigidParticles(BodyId id);
   [[nodiscard]] bool finiteState() const;
   void updateDeformableBodyStates();
+  void updateDeformableBodyState(BodyId id);
 
   WorldSettings settings_;
   std::vector<Material> materials_;
@@ -94,6 +114,14 @@ class World {
   ConnectorStore connectors_;
   BodyStore bodies_;
   NormalCache normals_;
+  Broadphase broadphase_;
+  ContactFinder contactFinder_;
+  std::vector<Aabb> bodyBoxes_;
+  std::vector<BodyPair> bodyPairs_;
+  std::vector<BodyPlanePair> planePairs_;
+  ContactSet contacts_;
+  bool contactsStale_ = true;
+  double maxRadius_ = 0.0;
 
   // cached index lists, rebuilt when bodies are added
   std::vector<BodyId> rigidBodies_;

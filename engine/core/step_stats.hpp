@@ -9,19 +9,29 @@ namespace volpar {
 struct StageTimes {
   double integrateVelocities = 0.0;
   double integratePositions = 0.0;
+  double broadphase = 0.0;
+  double particleContacts = 0.0;
   double total = 0.0;
 
   StageTimes& operator+=(const StageTimes& o) {
     integrateVelocities += o.integrateVelocities;
     integratePositions += o.integratePositions;
+    broadphase += o.broadphase;
+    particleContacts += o.particleContacts;
     total += o.total;
     return *this;
   }
 };
 
 struct StepStats {
-  std::int64_t step = 0;       ///< index of the step just taken (1 after the first step)
-  StageTimes time;             ///< [s]
+  std::int64_t step = 0;            ///< index of the step just taken (1 after the first step)
+  StageTimes time;                  ///< [s]
+  std::size_t bodyPairs = 0;        ///< candidate body pairs from the broadphase
+  std::size_t planePairs = 0;       ///< candidate body-plane pairs
+  std::size_t proxyMoves = 0;       ///< broadphase proxies reinserted (left their fat boxes)
+  std::size_t contacts = 0;         ///< touching particle pairs (particle-particle and particle-plane)
+  std::size_t contactGroups = 0;    ///< body pairs, body-plane pairs and self-contacting bodies in contact
+  double maxPenetration = 0.0;      ///< deepest particle overlap [m]
 };
 
 }  // namespace volpar

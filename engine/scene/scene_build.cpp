@@ -5,7 +5,6 @@
 #include <memory>
 #include <sstream>
 
-#include "collision/particle_grid.hpp"
 #include "engine/builders/obj_reader.hpp"
 
 namespace volpar {
@@ -118,56 +117,34 @@ Result<BuiltScene> buildScene(const SceneDesc& desc) {
         }
   }
 
+  world.refreshContacts();
   if (desc.allowInitialOverlap) return built;
 
-  // bodies overlapping each other or a plane at start
-  const ParticleStore& p = world.particles();
+  // bodies overlapping each other or a plane at start: the first offending group of contacts
+  // (in the world's deterministic order) with its deepest overlap
   const BodyStore& bodies = world.bodies();
-  auto overlapError = [&](BodyId a, BodyId b, double depth) {
-    const std::size_t da = built.bodySource[a.index()];
-    const std::size_t db = built.bodySource[b.index()];
-    const BodyDesc& later = desc.bodies[std::max(da, db)];
-    return at(desc, later.mark,
-              "bodies '" + bodies.info[a.index()].name + "' and '" + bodies.info[b.index()].name +
-                  "' overlap at start by " + format(depth) +
-                  " m; expected bodies apart (move them, or set allow_initial_overlap: true if this is intended)");
-  };
-  // the first offending pair of bodies (in particle order), with its deepest overlap
-  double maxRadius = 0.0;
-  for (const double r : p.radius) maxRadius = std::max(maxRadius, r);
-  ParticleGrid grid;
-  grid.build(p.position, 2.0 * maxRadius);
-  BodyId first, second;
-  double deepest = 0.0;
-  for (const auto& [i, j] : grid.pairsWithin(2.0 * maxRadius)) {
-    const BodyId a = p.body[i], b = p.body[j];
-    if (a == b) continue;
-    if (bodies.info[a.index()].kind == BodyKind::Static && bodies.info[b.index()].kind == BodyKind::Static) continue;
-    const double depth = p.radius[i] + p.radius[j] - (p.position[j] - p.position[i]).norm();
-    if (!(depth > 1e-6 * (p.radius[i] + p.radius[j]))) continue;
-    if (!first.valid()) {
-      first = a;
-      second = b;
+  const ContactSet& contacts = world.contacts();
+  for (const ContactGroup& g : contacts.groups) {
+    if (g.a == g.b) continue;  // a deformable body touching itself
+    double deepest = 0.0;
+    for (std::uint32_t k = g.first; k < g.first + g.count; ++k) {
+      const ParticleContact& c = contacts.contacts[k];
+      const double scale = world.particles().radius[c.a.index()] + (c.b.valid() ? world.particles().radius[c.b.index()] : 0.0);
+      if (c.depth > 1e-6 * scale) deepest = std::max(deepest, c.depth);
     }
-    if (std::minmax(a, b) == std::minmax(first, second)) deepest = std::max(deepest, depth);
-  }
-  if (first.valid()) return overlapError(first, second, deepest);
-  for (std::size_t k = 0; k < world.planes().size(); ++k) {
-    const Plane& pl = world.planes()[k];
-    BodyId sunk;
-    for (std::size_t i = 0; i < p.size(); ++i) {
-      const BodyId b = p.body[i];
-      if (bodies.info[b.index()].kind == BodyKind::Static || (sunk.valid() && b != sunk)) continue;
-      const double depth = p.radius[i] - (pl.normal.dot(p.position[i]) - pl.offset);
-      if (!(depth > 1e-6 * p.radius[i])) continue;
-      sunk = b;
-      deepest = std::max(deepest, depth);
-    }
-    if (sunk.valid())
-      return at(desc, desc.bodies[built.bodySource[sunk.index()]].mark,
-                "body '" + bodies.info[sunk.index()].name + "' overlaps plane " + std::to_string(k) + " (line " +
+    if (deepest == 0.0) continue;
+    if (g.plane.valid()) {
+      const std::size_t k = g.plane.index();
+      return at(desc, desc.bodies[built.bodySource[g.a.index()]].mark,
+                "body '" + bodies.info[g.a.index()].name + "' overlaps plane " + std::to_string(k) + " (line " +
                     std::to_string(desc.planes[k].mark.line) + ") at start by " + format(deepest) +
                     " m; expected it above the plane (or set allow_initial_overlap: true)");
+    }
+    const BodyDesc& later = desc.bodies[std::max(built.bodySource[g.a.index()], built.bodySource[g.b.index()])];
+    return at(desc, later.mark,
+              "bodies '" + bodies.info[g.a.index()].name + "' and '" + bodies.info[g.b.index()].name +
+                  "' overlap at start by " + format(deepest) +
+                  " m; expected bodies apart (move them, or set allow_initial_overlap: true if this is intended)");
   }
   return built;
 }

@@ -1,0 +1,149 @@
+#pragma once
+// Dynamic AABB tree (DESIGN section 3), after Box2D's b2DynamicTree (Erin Catto) with Bullet's btDbvt
+// ideas: leaves hold *fat* boxes (the tight box grown by a margin and by the predicted displacement), so a
+// proxy whose tight box stays inside its fat box costs nothing to move. Insertion descends by the
+// surface-area heuristic (branch cost = area growth of the ancestors), and AVL rotations after every
+// insertion and removal keep every internal node's subtrees within one level of each other, so the
+// height stays O(log n). Nodes live in one array and are addressed by index; freed nodes are recycled.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "collision/aabb.hpp"
+#include "engine/core/status.hpp"
+
+namespace volpar {
+
+/// Depth-first traversal stack on the caller's stack: queries allocate nothing and may run concurrently.
+/// An AVL-balanced tree of 2^32 leaves is under 47 levels deep, and the stack holds at most height + 1.
+class TraversalStack {
+ public:
+  void push(std::int32_t i) {
+    VOLPAR_ASSERT(size_ < kCapacity, "tree deeper than the traversal stack");
+    items_[size_++] = i;
+  }
+  std::int32_t pop() { return items_[--size_]; }
+  [[nodiscard]] bool empty() const { return size_ == 0; }
+
+ private:
+  static constexpr std::size_t kCapacity = 128;
+  std::int32_t items_[kCapacity];
+  std::size_t size_ = 0;
+};
+
+class AabbTree {
+ public:
+  static constexpr std::int32_t kNull = -1;
+
+  /// Inserts a proxy for `tight`, stored fattened by `margin` [m]; returns its id.
+  std::int32_t createProxy(const Aabb& tight, double margin, std::uint32_t userData);
+  void destroyProxy(std::int32_t proxy);
+  /// Updates a proxy. If `tight` still lies inside its fat box nothing happens and false is returned;
+  /// otherwise the proxy is reinserted with a box grown by `margin` and by `displacement` [m] (the
+  /// expected motion until the next update) and true is returned.
+  bool moveProxy(std::int32_t proxy, const Aabb& tight, double margin, const Vec3& displacement);
+
+  [[nodiscard]] const Aabb& fatAabb(std::int32_t proxy) const { return nodes_[static_cast<std::size_t>(proxy)].box; }
+  [[nodiscard]] std::uint32_t userData(std::int32_t proxy) const { return nodes_[static_cast<std::size_t>(proxy)].userData; }
+  [[nodiscard]] std::size_t proxyCount() const { return leafCount_; }
+  /// Height of the tree (a single leaf has height 0; empty: -1).
+  [[nodiscard]] int height() const { return root_ == kNull ? -1 : nodes_[static_cast<std::size_t>(root_)].height; }
+
+  /// Calls f(proxy) for every proxy whose fat box overlaps `box`; f returns false to stop.
+  template <class F>
+  void query(const Aabb& box, F&& f) const;
+
+  /// Calls f(proxy, tEnter) for every proxy whose fat box the segment origin + t dir, t in [0, maxT],
+  /// enters (slab test); f returns the new maxT (return the old one to keep going, 0 to stop).
+  template <class F>
+  void rayCast(const Vec3& origin, const Vec3& dir, double maxT, F&& f) const;
+
+  /// Checks the structure: parents enclose children, heights and parent links are right, every internal
+  /// node is AVL-balanced, the free list and leaf count add up. Returns an empty string when all hold,
+  /// otherwise what is wrong.
+  [[nodiscard]] std::string validate() const;
+
+ private:
+  struct Node {
+    Aabb box;
+    std::int32_t parent = kNull;  ///< also the next free node while on the free list
+    std::int32_t child1 = kNull;
+    std::int32_t child2 = kNull;
+    std::int32_t height = -1;     ///< leaf 0, free -1
+    std::uint32_t userData = 0;
+    [[nodiscard]] bool leaf() const { return child1 == kNull; }
+  };
+
+  std::int32_t allocate();
+  void release(std::int32_t node);
+  void insertLeaf(std::int32_t leaf);
+  void removeLeaf(std::int32_t leaf);
+  std::int32_t balance(std::int32_t a);
+  void refit(std::int32_t index);  // heights, boxes and balance from index up to the root
+  [[nodiscard]] std::string validateNode(std::int32_t index, int& leaves) const;
+
+  std::vector<Node> nodes_;
+  std::int32_t root_ = kNull;
+  std::int32_t freeList_ = kNull;
+  std::size_t leafCount_ = 0;
+};
+
+
+
+template <class F>
+void AabbTree::query(const Aabb& box, F&& f) const {
+  if (root_ == kNull) return;
+  TraversalStack stack;
+  stack.push(root_);
+  while (!stack.empty()) {
+    const std::int32_t i = stack.pop();
+    const Node& n = nodes_[static_cast<std::size_t>(i)];
+    if (!n.box.overlaps(box)) continue;
+    if (n.leaf()) {
+      if (!f(i)) return;
+    } else {
+      stack.push(n.child1);
+      stack.push(n.child2);
+    }
+  }
+}
+
+template <class F>
+void AabbTree::rayCast(const Vec3& origin, const Vec3& dir, double maxT, F&& f) const {
+  if (root_ == kNull) return;
+  const Vec3 inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());
+  auto enter = [&](const Aabb& b, double& tEnter) {
+    double t0 = 0.0, t1 = maxT;
+    for (int k = 0; k < 3; ++k) {
+      if (dir[k] == 0.0) {
+        if (origin[k] < b.lo[k] || origin[k] > b.hi[k]) return false;
+        continue;
+      }
+      double ta = (b.lo[k] - origin[k]) * inv[k], tb = (b.hi[k] - origin[k]) * inv[k];
+      if (ta > tb) std::swap(ta, tb);
+      t0 = std::max(t0, ta);
+      t1 = std::min(t1, tb);
+      if (t0 > t1) return false;
+    }
+    tEnter = t0;
+    return true;
+  };
+  TraversalStack stack;
+  stack.push(root_);
+  while (!stack.empty()) {
+    const std::int32_t i = stack.pop();
+    const Node& n = nodes_[static_cast<std::size_t>(i)];
+    double t = 0.0;
+    if (!enter(n.box, t)) continue;
+    if (n.leaf()) {
+      maxT = f(i, t);
+      if (maxT <= 0.0) return;
+    } else {
+      stack.push(n.child1);
+      stack.push(n.child2);
+    }
+  }
+}
+
+}  // namespace volpar

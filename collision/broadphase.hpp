@@ -1,0 +1,64 @@
+#pragma once
+// Body-level broadphase: two dynamic AABB trees, one for moving bodies and one for static bodies, so
+// static-static pairs never arise. Each step every moving body's fat box is queried against both trees;
+// the pair list is sorted, so its order is deterministic. Planes are tested against the fat boxes
+// directly (there are few of them).
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "collision/aabb_tree.hpp"
+#include "engine/core/ids.hpp"
+#include "engine/core/plane.hpp"
+
+namespace volpar {
+
+struct BodyPair {
+  BodyId a;  ///< a < b
+  BodyId b;
+  auto operator<=>(const BodyPair&) const = default;
+};
+
+struct BodyPlanePair {
+  BodyId body;
+  PlaneId plane;
+  auto operator<=>(const BodyPlanePair&) const = default;
+};
+
+class Broadphase {
+ public:
+  /// `margin` [m]: how far a fat box reaches beyond the tight one.
+  void setMargin(double margin) { margin_ = margin; }
+  [[nodiscard]] double margin() const { return margin_; }
+
+  void addBody(BodyId id, const Aabb& tight, bool isStatic);
+  void removeBody(BodyId id);
+  /// Updates a moving body's box; `displacement` [m] is its expected motion over the next step.
+  void moveBody(BodyId id, const Aabb& tight, const Vec3& displacement);
+
+  /// Every pair of bodies whose fat boxes overlap (at least one of them moving), sorted; and every
+  /// (moving body, plane) pair whose fat box reaches the plane's solid side.
+  void findPairs(std::span<const Plane> planes, std::vector<BodyPair>& pairs, std::vector<BodyPlanePair>& planePairs) const;
+
+  [[nodiscard]] const AabbTree& movingTree() const { return moving_; }
+  [[nodiscard]] const AabbTree& staticTree() const { return static_; }
+  [[nodiscard]] bool isStatic(BodyId id) const { return proxies_[id.index()].isStatic; }
+  [[nodiscard]] const Aabb& fatBox(BodyId id) const;
+  /// Number of proxies moved (reinserted) by the last moveBody calls since the last findPairs.
+  [[nodiscard]] std::size_t reinsertions() const { return reinsertions_; }
+
+ private:
+  struct Proxy {
+    std::int32_t node = AabbTree::kNull;
+    bool isStatic = false;
+  };
+  AabbTree moving_;
+  AabbTree static_;
+  std::vector<Proxy> proxies_;  // by body index
+  std::vector<BodyId> movingBodies_;  // ascending
+  double margin_ = 0.05;
+  mutable std::size_t reinsertions_ = 0;
+};
+
+}  // namespace volpar

@@ -1,0 +1,227 @@
+#include "collision/particle_contacts.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace volpar {
+
+namespace {
+
+/// Contact between particles a and b (world positions, radii) if they touch.
+bool touch(const ParticleStore& p, ParticleId a, ParticleId b, ParticleContact& c) {
+  const Vec3 d = p.position[b.index()] - p.position[a.index()];
+  const double rsum = p.radius[a.index()] + p.radius[b.index()];
+  const double dist2 = d.squaredNorm();
+  if (!(dist2 < rsum * rsum)) return false;
+  const double dist = std::sqrt(dist2);
+  c.a = a;
+  c.b = b;
+  c.plane = PlaneId{};
+  // coincident centres have no centre line: fall back to +z
+  c.normal = dist > 1e-12 * rsum ? Vec3(d / dist) : Vec3::UnitZ();
+  c.depth = rsum - dist;
+  c.point = p.position[a.index()] + c.normal * (p.radius[a.index()] - 0.5 * c.depth);
+  return true;
+}
+
+void sortGroup(ContactSet& out, std::uint32_t first) {
+  std::sort(out.contacts.begin() + first, out.contacts.end(), [](const ParticleContact& x, const ParticleContact& y) {
+    return x.a != y.a ? x.a < y.a : x.b < y.b;
+  });
+}
+
+}  // namespace
+
+void ContactFinder::buildGrid(BodyGrid& g, std::span<const ParticleId> ids, const std::vector<Vec3>& coords,
+                              const ParticleStore& particles) {
+  Aabb box;
+  g.maxRadius = 0.0;
+  for (const ParticleId id : ids) {
+    box.extend({coords[id.index()], coords[id.index()]});
+    g.maxRadius = std::max(g.maxRadius, particles.radius[id.index()]);
+  }
+  // cells one diameter wide; grown if a sparse body would need too many
+  g.cell = std::max(2.0 * g.maxRadius, 1e-9);
+  const Vec3 extent = box.hi - box.lo;
+  const double maxCells = 8.0 * static_cast<double>(ids.size()) + 64.0;
+  while ((extent / g.cell + Vec3::Ones()).prod() > maxCells) g.cell *= 2.0;
+  g.origin = box.lo;
+  for (int k = 0; k < 3; ++k) g.dims[k] = static_cast<int>(std::floor(extent[k] / g.cell)) + 1;
+  const std::size_t cells = static_cast<std::size_t>(g.dims.x()) * static_cast<std::size_t>(g.dims.y()) * static_cast<std::size_t>(g.dims.z());
+  auto cellOf = [&](const Vec3& x) {
+    Eigen::Vector3i c;
+    for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>(std::floor((x[k] - g.origin[k]) / g.cell)), 0, g.dims[k] - 1);
+    return (static_cast<std::size_t>(c.z()) * static_cast<std::size_t>(g.dims.y()) + static_cast<std::size_t>(c.y())) *
+               static_cast<std::size_t>(g.dims.x()) + static_cast<std::size_t>(c.x());
+  };
+  // counting sort of the particles by cell (stable: ascending ids within a cell)
+  g.cellStart.assign(cells + 1, 0);
+  for (const ParticleId id : ids) ++g.cellStart[cellOf(coords[id.index()]) + 1];
+  for (std::size_t c = 0; c < cells; ++c) g.cellStart[c + 1] += g.cellStart[c];
+  g.items.resize(ids.size());
+  fill_.assign(g.cellStart.begin(), g.cellStart.end() - 1);
+  for (const ParticleId id : ids) g.items[fill_[cellOf(coords[id.index()])]++] = id;
+}
+
+void ContactFinder::addBody(BodyId id, const ParticleStore& particles, const BodyStore& bodies) {
+  if (grids_.size() <= id.index()) grids_.resize(id.index() + 1);
+  BodyGrid& g = grids_[id.index()];
+  const BodyInfo& info = bodies.info[id.index()];
+  if (info.kind == BodyKind::Deformable) {
+    g.worldFrame = true;
+    deformables_.push_back(id);
+    buildGrid(g, info.particles, particles.position, particles);
+  } else {
+    g.worldFrame = false;
+    buildGrid(g, info.particles, particles.local, particles);
+  }
+  adjacencyDirty_ = true;
+}
+
+void ContactFinder::rebuildAdjacency(const ParticleStore& particles, const ConnectorStore& connectors) {
+  const std::size_t n = particles.size();
+  adjacencyStart_.assign(n + 1, 0);
+  for (std::size_t c = 0; c < connectors.size(); ++c) {
+    if (connectors.broken[c]) continue;
+    ++adjacencyStart_[connectors.a[c].index() + 1];
+    ++adjacencyStart_[connectors.b[c].index() + 1];
+  }
+  for (std::size_t i = 0; i < n; ++i) adjacencyStart_[i + 1] += adjacencyStart_[i];
+  adjacency_.resize(adjacencyStart_[n]);
+  fill_.assign(adjacencyStart_.begin(), adjacencyStart_.end() - 1);
+  for (std::size_t c = 0; c < connectors.size(); ++c) {
+    if (connectors.broken[c]) continue;
+    adjacency_[fill_[connectors.a[c].index()]++] = connectors.b[c];
+    adjacency_[fill_[connectors.b[c].index()]++] = connectors.a[c];
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    std::sort(adjacency_.begin() + adjacencyStart_[i], adjacency_.begin() + adjacencyStart_[i + 1]);
+  adjacencyDirty_ = false;
+}
+
+bool ContactFinder::connected(ParticleId a, ParticleId b) const {
+  if (a.index() + 1 >= adjacencyStart_.size()) return false;
+  const auto first = adjacency_.begin() + adjacencyStart_[a.index()];
+  const auto last = adjacency_.begin() + adjacencyStart_[a.index() + 1];
+  return std::binary_search(first, last, b);
+}
+
+template <class F>
+void ContactFinder::forCells(const BodyGrid& g, const BodyState& s, const Aabb& box, F&& f) const {
+  // the world box in the grid's frame (a rotated box's bounds)
+  Vec3 centre = box.centre(), half = 0.5 * (box.hi - box.lo);
+  if (!g.worldFrame) {
+    const Mat3 rt = s.orientation.toRotationMatrix().transpose();
+    centre = rt * (centre - s.position);
+    half = rt.cwiseAbs() * half;
+  }
+  Eigen::Vector3i lo, hi;
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = std::max(0, static_cast<int>(std::floor((centre[k] - half[k] - g.origin[k]) / g.cell)));
+    hi[k] = std::min(g.dims[k] - 1, static_cast<int>(std::floor((centre[k] + half[k] - g.origin[k]) / g.cell)));
+    if (lo[k] > hi[k]) return;
+  }
+  for (int z = lo.z(); z <= hi.z(); ++z)
+    for (int y = lo.y(); y <= hi.y(); ++y) {
+      const std::size_t row = (static_cast<std::size_t>(z) * static_cast<std::size_t>(g.dims.y()) + static_cast<std::size_t>(y)) *
+                              static_cast<std::size_t>(g.dims.x());
+      for (std::size_t c = row + static_cast<std::size_t>(lo.x()); c <= row + static_cast<std::size_t>(hi.x()); ++c)
+        for (std::uint32_t i = g.cellStart[c]; i < g.cellStart[c + 1]; ++i) f(g.items[i]);
+    }
+}
+
+void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, BodyId a, BodyId b,
+                             std::span<const Aabb> boxes, ContactSet& out) const {
+  const Aabb& boxA = boxes[a.index()];
+  const Aabb& boxB = boxes[b.index()];
+  const Aabb overlap{boxA.lo.cwiseMax(boxB.lo), boxA.hi.cwiseMin(boxB.hi)};
+  if (!overlap.valid()) return;
+  // iterate the body with fewer particles, look up the other's grid
+  const bool iterateA = bodies.info[a.index()].particles.size() <= bodies.info[b.index()].particles.size();
+  const BodyId it = iterateA ? a : b;
+  const BodyId other = iterateA ? b : a;
+  const BodyGrid& gi = grids_[it.index()];
+  const BodyGrid& go = grids_[other.index()];
+  const BodyState& so = bodies.state[other.index()];
+  const Mat3 rtOther = so.orientation.toRotationMatrix().transpose();
+  const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
+  ParticleContact c;
+  forCells(gi, bodies.state[it.index()], overlap.expanded(gi.maxRadius), [&](ParticleId pi) {
+    const Vec3& x = p.position[pi.index()];
+    // (a hair wider than the largest sum of radii, so rounding in the frame change cannot drop a pair)
+    const double reach = (p.radius[pi.index()] + go.maxRadius) * (1.0 + 1e-9);
+    if (!Aabb::sphere(x, p.radius[pi.index()]).overlaps(boxes[other.index()])) return;
+    // the particle's reach in the other grid's frame
+    const Vec3 y = go.worldFrame ? x : Vec3(rtOther * (x - so.position));
+    Eigen::Vector3i lo, hi;
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::max(0, static_cast<int>(std::floor((y[k] - reach - go.origin[k]) / go.cell)));
+      hi[k] = std::min(go.dims[k] - 1, static_cast<int>(std::floor((y[k] + reach - go.origin[k]) / go.cell)));
+      if (lo[k] > hi[k]) return;
+    }
+    for (int z = lo.z(); z <= hi.z(); ++z)
+      for (int yy = lo.y(); yy <= hi.y(); ++yy) {
+        const std::size_t row = (static_cast<std::size_t>(z) * static_cast<std::size_t>(go.dims.y()) + static_cast<std::size_t>(yy)) *
+                                static_cast<std::size_t>(go.dims.x());
+        for (std::size_t cell = row + static_cast<std::size_t>(lo.x()); cell <= row + static_cast<std::size_t>(hi.x()); ++cell)
+          for (std::uint32_t k = go.cellStart[cell]; k < go.cellStart[cell + 1]; ++k) {
+            const ParticleId q = go.items[k];
+            if (iterateA ? touch(p, pi, q, c) : touch(p, q, pi, c)) out.contacts.push_back(c);
+          }
+      }
+  });
+  const auto count = static_cast<std::uint32_t>(out.contacts.size()) - first;
+  if (count == 0) return;
+  sortGroup(out, first);
+  out.groups.push_back({a, b, PlaneId{}, first, count});
+}
+
+void ContactFinder::selfContacts(const ParticleStore& p, BodyId id, ContactSet& out) const {
+  const BodyGrid& g = grids_[id.index()];
+  const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
+  ParticleContact c;
+  for (const ParticleId pi : g.items) {
+    const Vec3& x = p.position[pi.index()];
+    forCells(g, BodyState{}, Aabb::sphere(x, p.radius[pi.index()] + g.maxRadius), [&](ParticleId q) {
+      if (!(pi < q) || connected(pi, q)) return;
+      if (touch(p, pi, q, c)) out.contacts.push_back(c);
+    });
+  }
+  const auto count = static_cast<std::uint32_t>(out.contacts.size()) - first;
+  if (count == 0) return;
+  sortGroup(out, first);
+  out.groups.push_back({id, id, PlaneId{}, first, count});
+}
+
+void ContactFinder::planeContacts(const ParticleStore& p, const BodyStore& bodies, BodyId id, PlaneId plane,
+                                  const Plane& pl, ContactSet& out) const {
+  const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
+  for (const ParticleId pi : bodies.info[id.index()].particles) {
+    const double r = p.radius[pi.index()];
+    const double height = pl.normal.dot(p.position[pi.index()]) - pl.offset;
+    if (!(height < r)) continue;
+    ParticleContact c;
+    c.a = pi;
+    c.plane = plane;
+    c.normal = -pl.normal;
+    c.depth = r - height;
+    // midpoint between the particle's lowest point and its foot on the plane
+    c.point = p.position[pi.index()] - pl.normal * (0.5 * (r + height));
+    out.contacts.push_back(c);
+  }
+  const auto count = static_cast<std::uint32_t>(out.contacts.size()) - first;
+  if (count > 0) out.groups.push_back({id, BodyId{}, plane, first, count});
+}
+
+void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies, const ConnectorStore& connectors,
+                         std::span<const BodyPair> pairs, std::span<const BodyPlanePair> planePairs,
+                         std::span<const Plane> planes, std::span<const Aabb> boxes, ContactSet& out) {
+  out.clear();
+  if (adjacencyDirty_) rebuildAdjacency(particles, connectors);
+  for (const BodyId id : deformables_) buildGrid(grids_[id.index()], bodies.info[id.index()].particles, particles.position, particles);
+  for (const BodyPair& pr : pairs) bodyPair(particles, bodies, pr.a, pr.b, boxes, out);
+  for (const BodyPlanePair& pp : planePairs) planeContacts(particles, bodies, pp.body, pp.plane, planes[pp.plane.index()], out);
+  for (const BodyId id : deformables_) selfContacts(particles, id, out);
+}
+
+}  // namespace volpar
