@@ -39,6 +39,7 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
     const StepStatus status = world.step();
     summary.stepSeconds += world.stats().time.total;
     summary.stageTimes += world.stats().time;
+    summary.maxPenetration = std::max(summary.maxPenetration, world.stats().maxPenetration);
     ++summary.steps;
     if (hasFlag(status, StepStatus::NonFinite)) {
       failure = Error{"", 0, 0,

@@ -37,6 +37,7 @@ struct RunSummary {
   EnergyReport energyStart;
   EnergyReport energyEnd;
   StageTimes stageTimes;         ///< summed over the run [s]
+  double maxPenetration = 0.0;   ///< deepest particle overlap seen after any step [m]
   bool interrupted = false;
   std::string output;
 };

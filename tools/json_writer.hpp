@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace volpar {
 
@@ -41,6 +42,16 @@ class JsonWriter {
   JsonWriter& field(const std::string& k, bool v) {
     key(k);
     out_ << (v ? "true" : "false");
+    return *this;
+  }
+  JsonWriter& field(const std::string& k, const std::vector<std::string>& v) {
+    key(k);
+    out_ << '[';
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i) out_ << ", ";
+      quote(v[i]);
+    }
+    out_ << ']';
     return *this;
   }
   [[nodiscard]] std::string str() const { return out_.str(); }

@@ -219,21 +219,26 @@ class Series {
 
   [[nodiscard]] hid_t id() const { return ds_.get(); }
 
-  void append(hid_t memType, const void* data) {
-    std::vector<hsize_t> dims{rows_ + 1};
+  void append(hid_t memType, const void* data) { appendRows(memType, data, 1); }
+
+  /// Appends `n` rows at once (ragged per-frame data).
+  void appendRows(hid_t memType, const void* data, hsize_t n) {
+    if (n == 0) return;
+    std::vector<hsize_t> dims{rows_ + n};
     for (const hsize_t d : tail_) dims.push_back(d);
     check(H5Dset_extent(ds_.get(), dims.data()), "extend dataset");
     Hid fileSpace = checked(H5Dget_space(ds_.get()), H5Sclose, "dataset space");
     std::vector<hsize_t> start(dims.size(), 0), count = dims;
     start[0] = rows_;
-    count[0] = 1;
+    count[0] = n;
     check(H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr), "select");
     Hid memSpace = checked(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr), H5Sclose, "space");
     bool empty = false;
     for (const hsize_t d : tail_) empty = empty || d == 0;
     if (!empty) check(H5Dwrite(ds_.get(), memType, memSpace.get(), fileSpace.get(), H5P_DEFAULT, data), "write frame");
-    ++rows_;
+    rows_ += n;
   }
+  [[nodiscard]] hsize_t rows() const { return rows_; }
 
  private:
   Hid ds_;
@@ -299,14 +304,38 @@ std::string readText(const std::string& path) {
 
 }  // namespace
 
+/// Contacts of every frame as ragged arrays: frame t owns rows offset[t] .. offset[t] + count[t].
+struct ContactSeries {
+  Hid group;
+  Series offset, count, particleA, particleB, plane, point, normal, depth;
+
+  explicit ContactSeries(hid_t file = H5I_INVALID_HID) {
+    if (file < 0) return;
+    group = ::volpar::group(file, "contacts");
+    offset = Series(group.get(), "offset", H5T_STD_I64LE, {});
+    count = Series(group.get(), "count", H5T_STD_I64LE, {});
+    particleA = Series(group.get(), "particle_a", H5T_STD_I32LE, {});
+    particleB = Series(group.get(), "particle_b", H5T_STD_I32LE, {});
+    plane = Series(group.get(), "plane", H5T_STD_I32LE, {});
+    point = Series(group.get(), "point", H5T_IEEE_F64LE, {3});
+    normal = Series(group.get(), "normal", H5T_IEEE_F64LE, {3});
+    depth = Series(group.get(), "depth", H5T_IEEE_F64LE, {});
+    attrString(point.id(), "unit", "m");
+    attrString(depth.id(), "unit", "m");
+  }
+};
+
 struct H5mdWriter::Impl {
   Hid file;
   Element position, velocity, particleBody;
   Element bodyPosition, bodyOrientation, bodyVelocity, bodyAngularVelocity;
-  Element kinetic, potential, total, linearMomentum, angularMomentum;
-  // scratch, sized once
+  Element kinetic, potential, total, linearMomentum, angularMomentum, contactCount, maxPenetration;
+  ContactSeries contacts;
+  // scratch, reused
   std::vector<std::int32_t> bodyIndex;
   std::vector<double> bodyVec3, bodyQuat;
+  std::vector<std::int32_t> contactA, contactB, contactPlane;
+  std::vector<double> contactPoint, contactNormal, contactDepth;
   std::size_t particles = 0;
 };
 
@@ -385,7 +414,15 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       impl->total = Element(obs.get(), "total_energy", H5T_IEEE_F64LE, {}, "J", clock);
       impl->linearMomentum = Element(obs.get(), "linear_momentum", H5T_IEEE_F64LE, {3}, "kg m s-1", clock);
       impl->angularMomentum = Element(obs.get(), "angular_momentum", H5T_IEEE_F64LE, {3}, "kg m2 s-1", clock);
+      impl->contactCount = Element(obs.get(), "contact_count", H5T_STD_I64LE, {}, "", clock);
+      impl->maxPenetration = Element(obs.get(), "max_penetration", H5T_IEEE_F64LE, {}, "m", clock);
     }
+    // /contacts (the engine's own group): ragged per-frame arrays, on the particles' clock
+    impl->contacts = ContactSeries(f);
+    check(H5Lcreate_hard(f, "particles/all/position/step", impl->contacts.group.get(), "step", H5P_DEFAULT, H5P_DEFAULT),
+          "link step");
+    check(H5Lcreate_hard(f, "particles/all/position/time", impl->contacts.group.get(), "time", H5P_DEFAULT, H5P_DEFAULT),
+          "link time");
     // /parameters
     {
       Hid par = group(f, "parameters");
@@ -468,6 +505,11 @@ Status H5mdWriter::writeFrame(const World& world) {
     const Vec3 ang = world.angularMomentum();
     m.linearMomentum.append(H5T_NATIVE_DOUBLE, lin.data(), step, time);
     m.angularMomentum.append(H5T_NATIVE_DOUBLE, ang.data(), step, time);
+    const std::int64_t contactCount = static_cast<std::int64_t>(world.contacts().contacts.size());
+    const double deepest = world.stats().maxPenetration;
+    m.contactCount.append(H5T_NATIVE_INT64, &contactCount, step, time);
+    m.maxPenetration.append(H5T_NATIVE_DOUBLE, &deepest, step, time);
+    writeContacts(world.contacts());
 
     check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");
   } catch (const H5Failure& e) {
@@ -476,6 +518,39 @@ Status H5mdWriter::writeFrame(const World& world) {
   times_.push_back(time);
   steps_.push_back(step);
   return okStatus();
+}
+
+void H5mdWriter::writeContacts(const ContactSet& set) {
+  Impl& m = *impl_;
+  const std::size_t n = set.contacts.size();
+  m.contactA.resize(n);
+  m.contactB.resize(n);
+  m.contactPlane.resize(n);
+  m.contactPoint.resize(3 * n);
+  m.contactNormal.resize(3 * n);
+  m.contactDepth.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const ParticleContact& c = set.contacts[i];
+    m.contactA[i] = static_cast<std::int32_t>(c.a.value);
+    m.contactB[i] = c.b.valid() ? static_cast<std::int32_t>(c.b.value) : -1;
+    m.contactPlane[i] = c.plane.valid() ? static_cast<std::int32_t>(c.plane.value) : -1;
+    for (int k = 0; k < 3; ++k) {
+      m.contactPoint[3 * i + static_cast<std::size_t>(k)] = c.point[k];
+      m.contactNormal[3 * i + static_cast<std::size_t>(k)] = c.normal[k];
+    }
+    m.contactDepth[i] = c.depth;
+  }
+  ContactSeries& cs = m.contacts;
+  const auto offset = static_cast<std::int64_t>(cs.particleA.rows());
+  const auto count = static_cast<std::int64_t>(n);
+  cs.offset.append(H5T_NATIVE_INT64, &offset);
+  cs.count.append(H5T_NATIVE_INT64, &count);
+  cs.particleA.appendRows(H5T_NATIVE_INT32, m.contactA.data(), n);
+  cs.particleB.appendRows(H5T_NATIVE_INT32, m.contactB.data(), n);
+  cs.plane.appendRows(H5T_NATIVE_INT32, m.contactPlane.data(), n);
+  cs.point.appendRows(H5T_NATIVE_DOUBLE, m.contactPoint.data(), n);
+  cs.normal.appendRows(H5T_NATIVE_DOUBLE, m.contactNormal.data(), n);
+  cs.depth.appendRows(H5T_NATIVE_DOUBLE, m.contactDepth.data(), n);
 }
 
 Status H5mdWriter::writeSidecar() const {

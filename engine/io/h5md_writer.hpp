@@ -43,6 +43,7 @@ class H5mdWriter {
  private:
   struct Impl;
   explicit H5mdWriter(std::unique_ptr<Impl> impl, std::string path);
+  void writeContacts(const ContactSet& contacts);  // throws the file's internal failure type
 
   std::unique_ptr<Impl> impl_;
   std::string path_;

@@ -1,0 +1,253 @@
+#include "collision/reference/fcl_adapter.hpp"
+
+#include <fcl/fcl.h>
+
+#include <algorithm>
+#include <map>
+#include <sstream>
+
+namespace volpar::reference {
+
+namespace {
+
+fcl::Transform3d translation(const Vec3& p) {
+  fcl::Transform3d x = fcl::Transform3d::Identity();
+  x.translation() = p;
+  return x;
+}
+
+std::uint32_t tag(const fcl::CollisionObjectd* o) {
+  return static_cast<std::uint32_t>(reinterpret_cast<std::uintptr_t>(o->getUserData()));
+}
+
+void* asUserData(std::size_t i) { return reinterpret_cast<void*>(static_cast<std::uintptr_t>(i)); }
+
+std::string describe(ParticleId a, ParticleId b) {
+  return "particles " + std::to_string(a.value) + " and " + std::to_string(b.value);
+}
+
+}  // namespace
+
+struct FclWorldReference::Impl {
+  // one sphere object per particle, one box per body, one halfspace per plane
+  std::map<double, std::shared_ptr<fcl::Sphered>> spheres;
+  std::vector<std::unique_ptr<fcl::CollisionObjectd>> particleObjects;
+  std::vector<std::unique_ptr<fcl::CollisionObjectd>> bodyObjects;
+  std::vector<std::unique_ptr<fcl::CollisionObjectd>> planeObjects;
+  fcl::DynamicAABBTreeCollisionManagerd particleManager;
+  fcl::DynamicAABBTreeCollisionManagerd bodyManager;
+  bool built = false;
+
+  void build(const ParticleStore& p, const BodyStore& b, std::span<const Aabb> boxes, std::span<const Plane> planes) {
+    particleManager.clear();
+    bodyManager.clear();
+    particleObjects.clear();
+    bodyObjects.clear();
+    planeObjects.clear();
+    std::vector<fcl::CollisionObjectd*> raw;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      auto& sphere = spheres[p.radius[i]];
+      if (!sphere) sphere = std::make_shared<fcl::Sphered>(p.radius[i]);
+      particleObjects.push_back(std::make_unique<fcl::CollisionObjectd>(sphere, translation(p.position[i])));
+      particleObjects.back()->setUserData(asUserData(i));
+      raw.push_back(particleObjects.back().get());
+    }
+    particleManager.registerObjects(raw);
+    particleManager.setup();
+    raw.clear();
+    for (std::size_t i = 0; i < b.size(); ++i) {
+      const Vec3 size = boxes[i].hi - boxes[i].lo;
+      bodyObjects.push_back(std::make_unique<fcl::CollisionObjectd>(
+          std::make_shared<fcl::Boxd>(size.x(), size.y(), size.z()), translation(boxes[i].centre())));
+      bodyObjects.back()->setUserData(asUserData(i));
+      raw.push_back(bodyObjects.back().get());
+    }
+    bodyManager.registerObjects(raw);
+    bodyManager.setup();
+    for (const Plane& pl : planes)
+      planeObjects.push_back(std::make_unique<fcl::CollisionObjectd>(std::make_shared<fcl::Halfspaced>(pl.normal, pl.offset)));
+    built = true;
+  }
+
+  void update(const ParticleStore& p, std::span<const Aabb> boxes) {
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      particleObjects[i]->setTranslation(p.position[i]);
+      particleObjects[i]->computeAABB();
+    }
+    particleManager.update();  // without computeAABB() and update() moved objects are missed (FCL #629)
+    for (std::size_t i = 0; i < boxes.size(); ++i) {
+      const Vec3 size = boxes[i].hi - boxes[i].lo;
+      bodyObjects[i] = std::make_unique<fcl::CollisionObjectd>(std::make_shared<fcl::Boxd>(size.x(), size.y(), size.z()),
+                                                               translation(boxes[i].centre()));
+      bodyObjects[i]->setUserData(asUserData(i));
+    }
+    std::vector<fcl::CollisionObjectd*> raw;
+    for (auto& o : bodyObjects) raw.push_back(o.get());
+    bodyManager.clear();
+    bodyManager.registerObjects(raw);
+    bodyManager.setup();
+  }
+};
+
+FclWorldReference::FclWorldReference() : impl_(std::make_unique<Impl>()) {}
+FclWorldReference::~FclWorldReference() = default;
+
+FclReport FclWorldReference::collide(const ParticleStore& p, const BodyStore& b, std::span<const Aabb> boxes,
+                                     std::span<const Plane> planes, const SelfContactFilter& selfContact) {
+  Impl& m = *impl_;
+  if (!m.built || m.particleObjects.size() != p.size() || m.bodyObjects.size() != b.size() ||
+      m.planeObjects.size() != planes.size())
+    m.build(p, b, boxes, planes);
+  else
+    m.update(p, boxes);
+  FclReport report;
+
+  // body level: FCL's broadphase over the bodies' tight boxes
+  struct BoxData {
+    const BodyStore* bodies;
+    std::vector<BodyPair>* out;
+  } boxData{&b, &report.boxPairs};
+  m.bodyManager.collide(&boxData, [](fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* data) {
+    auto* d = static_cast<BoxData*>(data);
+    fcl::CollisionRequestd req;
+    fcl::CollisionResultd res;
+    if (!fcl::collide(o1, o2, req, res)) return false;
+    const BodyId x(tag(o1)), y(tag(o2));
+    const bool bothStatic = d->bodies->info[x.index()].kind == BodyKind::Static &&
+                            d->bodies->info[y.index()].kind == BodyKind::Static;
+    if (!bothStatic) d->out->push_back(x < y ? BodyPair{x, y} : BodyPair{y, x});
+    return false;
+  });
+
+  // particle level: FCL's broadphase and sphere-sphere narrow phase over every particle
+  struct SphereData {
+    const ParticleStore* particles;
+    const BodyStore* bodies;
+    const SelfContactFilter* self;
+    std::vector<SpherePair>* out;
+  } sphereData{&p, &b, &selfContact, &report.spherePairs};
+  m.particleManager.collide(&sphereData, [](fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* data) {
+    auto* d = static_cast<SphereData*>(data);
+    ParticleId x(tag(o1)), y(tag(o2));
+    const BodyId bx = d->particles->body[x.index()], by = d->particles->body[y.index()];
+    if (bx == by) {
+      if (d->bodies->info[bx.index()].kind != BodyKind::Deformable || !(*d->self)(x, y)) return false;
+    } else if (d->bodies->info[bx.index()].kind == BodyKind::Static && d->bodies->info[by.index()].kind == BodyKind::Static) {
+      return false;
+    }
+    fcl::CollisionRequestd req;
+    fcl::CollisionResultd res;
+    if (!fcl::collide(o1, o2, req, res)) return false;
+    // order as volpar does: the particle of the lower body first, ascending ids inside one body
+    if (by < bx || (bx == by && y < x)) std::swap(x, y);
+    const double dist = (o2->getTranslation() - o1->getTranslation()).norm();
+    d->out->push_back({x, y, dist});
+    return false;
+  });
+
+  // planes: FCL sphere-halfspace for every particle of a moving body
+  for (std::size_t k = 0; k < planes.size(); ++k) {
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      if (b.info[p.body[i].index()].kind == BodyKind::Static) continue;
+      fcl::CollisionRequestd req;
+      fcl::CollisionResultd res;
+      if (fcl::collide(m.particleObjects[i].get(), m.planeObjects[k].get(), req, res))
+        report.planeTouches.push_back({ParticleId(i), PlaneId(k), planes[k].normal.dot(p.position[i]) - planes[k].offset});
+    }
+  }
+
+  std::sort(report.boxPairs.begin(), report.boxPairs.end());
+  report.boxPairs.erase(std::unique(report.boxPairs.begin(), report.boxPairs.end()), report.boxPairs.end());
+  std::sort(report.spherePairs.begin(), report.spherePairs.end());
+  std::sort(report.planeTouches.begin(), report.planeTouches.end());
+  for (const SpherePair& s : report.spherePairs) {
+    const BodyId x = p.body[s.a.index()], y = p.body[s.b.index()];
+    if (x != y) report.touchingBodies.push_back({x, y});
+  }
+  report.touchingBodies.erase(std::unique(report.touchingBodies.begin(), report.touchingBodies.end()),
+                              report.touchingBodies.end());
+  return report;
+}
+
+Comparison& Comparison::operator+=(const Comparison& o) {
+  bodyPairMismatches += o.bodyPairMismatches;
+  particlePairMismatches += o.particlePairMismatches;
+  planeContactMismatches += o.planeContactMismatches;
+  contactsChecked += o.contactsChecked;
+  grazing += o.grazing;
+  for (const auto& d : o.details)
+    if (details.size() < 20) details.push_back(d);
+  return *this;
+}
+
+Comparison compareContacts(const FclReport& fcl, std::span<const BodyPair> pairs, std::span<const BodyPlanePair> /*planePairs*/,
+                           const ContactSet& contacts, const ParticleStore& particles, std::size_t maxDetails) {
+  Comparison c;
+  auto note = [&](const std::string& s) {
+    if (c.details.size() < maxDetails) c.details.push_back(s);
+  };
+  // every pair FCL sees overlapping or touching must be a broadphase candidate
+  for (const auto* list : {&fcl.boxPairs, &fcl.touchingBodies})
+    for (const BodyPair& bp : *list)
+      if (!std::binary_search(pairs.begin(), pairs.end(), bp)) {
+        ++c.bodyPairMismatches;
+        note("bodies " + std::to_string(bp.a.value) + " and " + std::to_string(bp.b.value) +
+             (list == &fcl.boxPairs ? " have overlapping boxes" : " touch") + " in FCL but are not a broadphase pair");
+      }
+
+  // particle pairs, grazing ones left out on both sides
+  auto grazingPair = [&](ParticleId a, ParticleId b, double distance) {
+    const double rsum = particles.radius[a.index()] + particles.radius[b.index()];
+    return std::abs(distance - rsum) <= kGrazing * rsum;
+  };
+  std::vector<SpherePair> ours;
+  std::vector<PlaneTouch> ourPlanes;
+  for (const ParticleContact& pc : contacts.contacts) {
+    if (pc.plane.valid()) {
+      const double r = particles.radius[pc.a.index()];
+      ourPlanes.push_back({pc.a, pc.plane, r - pc.depth});
+    } else {
+      const double rsum = particles.radius[pc.a.index()] + particles.radius[pc.b.index()];
+      ours.push_back({pc.a, pc.b, rsum - pc.depth});
+    }
+  }
+  std::sort(ours.begin(), ours.end());
+  std::sort(ourPlanes.begin(), ourPlanes.end());
+  std::vector<SpherePair> reference;
+  for (const SpherePair& s : fcl.spherePairs) {
+    if (grazingPair(s.a, s.b, s.distance)) ++c.grazing;
+    else reference.push_back(s);
+  }
+  std::erase_if(ours, [&](const SpherePair& s) { return grazingPair(s.a, s.b, s.distance); });
+  c.contactsChecked += reference.size();
+  std::vector<SpherePair> onlyFcl, onlyOurs;
+  std::set_difference(reference.begin(), reference.end(), ours.begin(), ours.end(), std::back_inserter(onlyFcl));
+  std::set_difference(ours.begin(), ours.end(), reference.begin(), reference.end(), std::back_inserter(onlyOurs));
+  c.particlePairMismatches = onlyFcl.size() + onlyOurs.size();
+  for (const SpherePair& s : onlyFcl) note(describe(s.a, s.b) + " touch in FCL (distance " + std::to_string(s.distance) + ") but not in volpar");
+  for (const SpherePair& s : onlyOurs) note(describe(s.a, s.b) + " touch in volpar (distance " + std::to_string(s.distance) + ") but not in FCL");
+
+  // plane contacts
+  auto grazingPlane = [&](const PlaneTouch& t) {
+    const double r = particles.radius[t.particle.index()];
+    return std::abs(t.height - r) <= kGrazing * r;
+  };
+  std::vector<PlaneTouch> planeRef;
+  for (const PlaneTouch& t : fcl.planeTouches) {
+    if (grazingPlane(t)) ++c.grazing;
+    else planeRef.push_back(t);
+  }
+  std::erase_if(ourPlanes, grazingPlane);
+  c.contactsChecked += planeRef.size();
+  std::vector<PlaneTouch> planeOnlyFcl, planeOnlyOurs;
+  std::set_difference(planeRef.begin(), planeRef.end(), ourPlanes.begin(), ourPlanes.end(), std::back_inserter(planeOnlyFcl));
+  std::set_difference(ourPlanes.begin(), ourPlanes.end(), planeRef.begin(), planeRef.end(), std::back_inserter(planeOnlyOurs));
+  c.planeContactMismatches = planeOnlyFcl.size() + planeOnlyOurs.size();
+  for (const PlaneTouch& t : planeOnlyFcl)
+    note("particle " + std::to_string(t.particle.value) + " touches plane " + std::to_string(t.plane.value) + " in FCL but not in volpar");
+  for (const PlaneTouch& t : planeOnlyOurs)
+    note("particle " + std::to_string(t.particle.value) + " touches plane " + std::to_string(t.plane.value) + " in volpar but not in FCL");
+  return c;
+}
+
+}  // namespace volpar::reference

@@ -1,0 +1,91 @@
+#pragma once
+// FCL as the independent referee of volpar's collision results (DESIGN section 10). These files are the
+// only ones that include FCL. FCL's own broadphase manager (DynamicAABBTreeCollisionManager) and narrow
+// phase find, from scratch on the current state, which bodies' boxes overlap, which particle spheres
+// touch and which particles reach below a plane; compareContacts() checks volpar's results against that.
+//
+// Touching follows FCL: spheres with |c2 - c1| <= r1 + r2. Pairs within a relative 1e-9 of the contact
+// distance are *grazing*: FCL computes the distance with a square root and volpar compares squares, so
+// the two may disagree exactly at the boundary; grazing pairs are left out of the comparison on both sides
+// (see fcl-guide, section 6).
+
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "collision/aabb.hpp"
+#include "collision/broadphase.hpp"
+#include "collision/particle_contacts.hpp"
+#include "engine/core/body_store.hpp"
+#include "engine/core/particle_store.hpp"
+#include "engine/core/plane.hpp"
+
+namespace volpar::reference {
+
+/// Relative width of the grazing band.
+inline constexpr double kGrazing = 1e-9;
+
+struct SpherePair {
+  ParticleId a;  ///< particle of the body with the lower id (a < b inside one body)
+  ParticleId b;
+  double distance = 0.0;  ///< between the centres [m], as FCL computes it
+  auto operator<=>(const SpherePair& o) const { return std::pair(a, b) <=> std::pair(o.a, o.b); }
+  bool operator==(const SpherePair& o) const { return a == o.a && b == o.b; }
+};
+
+struct PlaneTouch {
+  ParticleId particle;
+  PlaneId plane;
+  double height = 0.0;  ///< of the centre above the plane [m]
+  auto operator<=>(const PlaneTouch& o) const { return std::pair(particle, plane) <=> std::pair(o.particle, o.plane); }
+  bool operator==(const PlaneTouch& o) const { return particle == o.particle && plane == o.plane; }
+};
+
+struct FclReport {
+  std::vector<BodyPair> boxPairs;        ///< bodies whose tight boxes overlap (FCL's broadphase), sorted
+  std::vector<BodyPair> touchingBodies;  ///< bodies with at least one touching particle pair, sorted
+  std::vector<SpherePair> spherePairs;   ///< touching particle pairs (different bodies, or unconnected
+                                         ///< particles of one deformable body), sorted
+  std::vector<PlaneTouch> planeTouches;  ///< particles touching a plane (moving bodies), sorted
+};
+
+/// Which particles of one body may touch each other (deformable self-contact): (a, b) -> bool.
+using SelfContactFilter = std::function<bool(ParticleId, ParticleId)>;
+
+class FclWorldReference {
+ public:
+  FclWorldReference();
+  ~FclWorldReference();
+  FclWorldReference(const FclWorldReference&) = delete;
+  FclWorldReference& operator=(const FclWorldReference&) = delete;
+
+  /// Runs FCL on the current state. `boxes` are the bodies' tight boxes [B]; `selfContact` says which
+  /// particle pairs of one deformable body count (volpar's rule: not joined by a connector).
+  FclReport collide(const ParticleStore& particles, const BodyStore& bodies, std::span<const Aabb> boxes,
+                    std::span<const Plane> planes, const SelfContactFilter& selfContact);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct Comparison {
+  std::size_t bodyPairMismatches = 0;      ///< FCL pairs (box overlap or touching) missing from volpar's pairs
+  std::size_t particlePairMismatches = 0;  ///< touching particle pairs found by one side only
+  std::size_t planeContactMismatches = 0;  ///< particle-plane contacts found by one side only
+  std::size_t contactsChecked = 0;         ///< non-grazing particle pairs and plane contacts compared
+  std::size_t grazing = 0;                 ///< pairs left out as grazing
+  std::vector<std::string> details;        ///< the first few mismatches, readable
+
+  [[nodiscard]] std::size_t mismatches() const { return bodyPairMismatches + particlePairMismatches + planeContactMismatches; }
+  Comparison& operator+=(const Comparison& o);
+};
+
+/// Compares volpar's broadphase pairs and contacts with FCL's report.
+[[nodiscard]] Comparison compareContacts(const FclReport& fcl, std::span<const BodyPair> pairs,
+                                         std::span<const BodyPlanePair> planePairs, const ContactSet& contacts,
+                                         const ParticleStore& particles, std::size_t maxDetails = 10);
+
+}  // namespace volpar::reference

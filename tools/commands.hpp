@@ -1,0 +1,40 @@
+#pragma once
+// The volpar subcommands; main() in volpar.cpp parses the command line with CLI11.
+
+#include <cstdint>
+#include <string>
+
+#include "engine/core/status.hpp"
+
+namespace volpar::cli {
+
+struct RunArgs {
+  std::string scene;
+  std::string output;
+  bool noOutput = false;
+  std::int64_t steps = 0;    ///< 0: the scene's
+  double duration = 0.0;     ///< 0: the scene's
+  int every = 0;             ///< 0: the scene's
+  bool json = false;
+  std::int64_t killAfterFrames = 0;
+};
+
+struct CheckArgs {
+  std::string scene;
+  std::int64_t steps = 0;
+  double duration = 0.0;
+  bool json = false;
+  int details = 10;
+};
+
+int run(const RunArgs& args);
+int check(const CheckArgs& args);
+int inspect(const std::string& path, bool json);
+int xdmf(const std::string& path);
+
+/// Prints "volpar: error: ..." to stderr and returns exit status 1.
+int fail(const Error& e);
+/// Steps to run: the command line's --steps or --duration, else the scene's.
+std::int64_t stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration);
+
+}  // namespace volpar::cli

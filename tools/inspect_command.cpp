@@ -1,0 +1,78 @@
+// volpar inspect and volpar xdmf: reading trajectories back.
+
+#include <cstdio>
+#include <iostream>
+
+#include "engine/io/h5md_reader.hpp"
+#include "engine/io/xdmf_writer.hpp"
+#include "tools/commands.hpp"
+#include "tools/json_writer.hpp"
+
+namespace volpar::cli {
+
+int fail(const Error& e) {
+  std::fprintf(stderr, "volpar: error: %s\n", e.toString().c_str());
+  return 1;
+}
+
+std::int64_t stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration) {
+  if (steps > 0) return steps;
+  if (duration > 0.0) return std::max<std::int64_t>(1, std::llround(duration / dt));
+  return scene;
+}
+
+int inspect(const std::string& path, bool json) {
+  auto reader = H5mdReader::open(path);
+  if (!reader) return fail(reader.error());
+  auto sum = (*reader)->summary();
+  if (!sum) return fail(sum.error());
+  const TrajectorySummary& s = *sum;
+  const double e0 = s.total.empty() ? 0.0 : s.total.front();
+  const double e1 = s.total.empty() ? 0.0 : s.total.back();
+  if (json) {
+    JsonWriter j;
+    j.begin()
+        .field("file", path)
+        .field("creator", s.creatorName)
+        .field("version", s.creatorVersion)
+        .field("scene", s.sceneName)
+        .field("frames", s.frames)
+        .field("particles", s.particles)
+        .field("bodies", s.bodies)
+        .field("time_start", s.time.empty() ? 0.0 : s.time.front())
+        .field("time_end", s.time.empty() ? 0.0 : s.time.back())
+        .field("energy_start", e0)
+        .field("energy_end", e1)
+        .end();
+    std::cout << j.str() << std::endl;
+    return 0;
+  }
+  std::printf("file         %s\n", path.c_str());
+  std::printf("written by   %s %s\n", s.creatorName.c_str(), s.creatorVersion.c_str());
+  std::printf("scene        %s\n", s.sceneName.c_str());
+  std::printf("frames       %zu", s.frames);
+  if (!s.time.empty())
+    std::printf(" (steps %lld..%lld, t = %.6g..%.6g s)", static_cast<long long>(s.step.front()),
+                static_cast<long long>(s.step.back()), s.time.front(), s.time.back());
+  std::printf("\nparticles    %zu\nbodies       %zu\n", s.particles, s.bodies);
+  if (!s.total.empty())
+    std::printf("energy       %.9g J -> %.9g J (kinetic %.6g -> %.6g J)\n", e0, e1, s.kinetic.front(), s.kinetic.back());
+  return 0;
+}
+
+int xdmf(const std::string& path) {
+  auto reader = H5mdReader::open(path);
+  if (!reader) return fail(reader.error());
+  auto sum = (*reader)->summary();
+  if (!sum) return fail(sum.error());
+  XdmfFrames f;
+  f.h5Path = path;
+  f.particles = sum->particles;
+  f.time = sum->time;
+  f.step = sum->step;
+  if (auto ok = writeXdmf(f); !ok) return fail(ok.error());
+  std::printf("%s\n", sidecarPath(path).c_str());
+  return 0;
+}
+
+}  // namespace volpar::cli

@@ -1,0 +1,116 @@
+// volpar run: a scene headless to an H5MD trajectory.
+
+#include <unistd.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "engine/io/xdmf_writer.hpp"
+#include "engine/run_loop.hpp"
+#include "engine/scene/scene_build.hpp"
+#include "engine/scene/scene_loader.hpp"
+#include "tools/commands.hpp"
+#include "tools/json_writer.hpp"
+
+namespace volpar::cli {
+
+namespace {
+
+std::atomic<bool> gStop{false};
+
+extern "C" void onSignal(int) { gStop.store(true); }
+
+void progressBar(std::int64_t done, std::int64_t total) {
+  const int width = 40;
+  const double f = total > 0 ? static_cast<double>(done) / static_cast<double>(total) : 1.0;
+  const int filled = static_cast<int>(f * width);
+  std::fprintf(stderr, "\r[%s%s] %5.1f%% step %lld/%lld", std::string(static_cast<std::size_t>(filled), '#').c_str(),
+               std::string(static_cast<std::size_t>(width - filled), ' ').c_str(), 100.0 * f,
+               static_cast<long long>(done), static_cast<long long>(total));
+  if (done >= total) std::fprintf(stderr, "\n");
+  std::fflush(stderr);
+}
+
+}  // namespace
+
+int run(const RunArgs& args) {
+  auto desc = loadScene(args.scene);
+  if (!desc) return fail(desc.error());
+  auto built = buildScene(*desc);
+  if (!built) return fail(built.error());
+  World& world = built->world;
+
+  RunOptions options;
+  options.steps = stepsFor(desc->stepCount(), desc->dt, args.steps, args.duration);
+  options.every = args.every > 0 ? args.every : desc->outputEvery;
+  if (!args.noOutput)
+    options.output = args.output.empty() ? std::filesystem::path(args.scene).stem().string() + ".h5" : args.output;
+  if (isatty(STDERR_FILENO)) options.progress = progressBar;
+  options.stop = &gStop;
+  options.killAfterFrames = args.killAfterFrames;
+  // Ctrl-C, kill, a scheduler's time limit or a closed terminal: finish the step and close the file
+  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, onSignal);
+
+  TrajectoryMeta meta;
+  meta.sceneName = desc->name;
+  meta.sceneFile = args.scene;
+  meta.sceneText = desc->text;
+  meta.extraFiles = built->meshFiles;
+  meta.outputEvery = options.every;
+  meta.stepsRequested = options.steps;
+
+  auto summary = runWorld(world, meta, options);
+  if (!summary) return fail(summary.error());
+  const RunSummary& s = *summary;
+  const double drift = s.energyEnd.total() - s.energyStart.total();
+  const StageTimes& t = s.stageTimes;
+  if (args.json) {
+    JsonWriter j;
+    j.begin()
+        .field("scene", desc->name)
+        .field("steps", s.steps)
+        .field("frames", s.frames)
+        .field("bodies", s.bodies)
+        .field("particles", s.particles)
+        .field("wall_seconds", s.wallSeconds)
+        .field("step_seconds", s.stepSeconds)
+        .field("steps_per_second", s.stepsPerSecond)
+        .field("simulated_seconds", world.time())
+        .field("energy_start", s.energyStart.total())
+        .field("energy_end", s.energyEnd.total())
+        .field("energy_drift", drift)
+        .field("contacts", world.stats().contacts)
+        .field("max_penetration", s.maxPenetration)
+        .field("interrupted", s.interrupted)
+        .field("output", s.output);
+    j.begin("stage_seconds")
+        .field("integrate_velocities", t.integrateVelocities)
+        .field("integrate_positions", t.integratePositions)
+        .field("broadphase", t.broadphase)
+        .field("particle_contacts", t.particleContacts)
+        .end();
+    j.end();
+    std::cout << j.str() << std::endl;
+  } else {
+    std::printf("scene        %s (%s)\n", desc->name.c_str(), args.scene.c_str());
+    std::printf("bodies       %zu, particles %zu\n", s.bodies, s.particles);
+    std::printf("steps        %lld (t = %.6g s)%s\n", static_cast<long long>(s.steps), world.time(),
+                s.interrupted ? ", interrupted" : "");
+    std::printf("speed        %.1f steps/s (%.3f s stepping, %.3f s wall)\n", s.stepsPerSecond, s.stepSeconds,
+                s.wallSeconds);
+    std::printf("stages       integrate velocities %.3f s, integrate positions %.3f s, broadphase %.3f s, "
+                "particle contacts %.3f s\n",
+                t.integrateVelocities, t.integratePositions, t.broadphase, t.particleContacts);
+    std::printf("contacts     %zu at the end, deepest overlap during the run %.3g m\n", world.stats().contacts,
+                s.maxPenetration);
+    std::printf("energy       %.9g J -> %.9g J (drift %.3g J)\n", s.energyStart.total(), s.energyEnd.total(), drift);
+    if (!s.output.empty())
+      std::printf("trajectory   %s (%zu frames), sidecar %s\n", s.output.c_str(), s.frames, sidecarPath(s.output).c_str());
+  }
+  return s.interrupted ? 130 : 0;
+}
+
+}  // namespace volpar::cli
