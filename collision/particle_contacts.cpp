@@ -24,6 +24,13 @@ bool touch(const ParticleStore& p, ParticleId a, ParticleId b, ParticleContact& 
   return true;
 }
 
+/// Cell index of coordinate v (grid origin o, cell width w), clamped to [-1, n] before the integer
+/// conversion so that far-away or huge coordinates cannot overflow.
+int cellIndex(double v, double o, double w, int n) {
+  const double c = std::floor((v - o) / w);
+  return static_cast<int>(std::clamp(c, -1.0, static_cast<double>(n)));
+}
+
 void sortGroup(ContactSet& out, std::uint32_t first) {
   std::sort(out.contacts.begin() + first, out.contacts.end(), [](const ParticleContact& x, const ParticleContact& y) {
     return x.a != y.a ? x.a < y.a : x.b < y.b;
@@ -50,7 +57,7 @@ void ContactFinder::buildGrid(BodyGrid& g, std::span<const ParticleId> ids, cons
   const std::size_t cells = static_cast<std::size_t>(g.dims.x()) * static_cast<std::size_t>(g.dims.y()) * static_cast<std::size_t>(g.dims.z());
   auto cellOf = [&](const Vec3& x) {
     Eigen::Vector3i c;
-    for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>(std::floor((x[k] - g.origin[k]) / g.cell)), 0, g.dims[k] - 1);
+    for (int k = 0; k < 3; ++k) c[k] = std::clamp(cellIndex(x[k], g.origin[k], g.cell, g.dims[k]), 0, g.dims[k] - 1);
     return (static_cast<std::size_t>(c.z()) * static_cast<std::size_t>(g.dims.y()) + static_cast<std::size_t>(c.y())) *
                static_cast<std::size_t>(g.dims.x()) + static_cast<std::size_t>(c.x());
   };
@@ -117,8 +124,8 @@ void ContactFinder::forCells(const BodyGrid& g, const BodyState& s, const Aabb& 
   }
   Eigen::Vector3i lo, hi;
   for (int k = 0; k < 3; ++k) {
-    lo[k] = std::max(0, static_cast<int>(std::floor((centre[k] - half[k] - g.origin[k]) / g.cell)));
-    hi[k] = std::min(g.dims[k] - 1, static_cast<int>(std::floor((centre[k] + half[k] - g.origin[k]) / g.cell)));
+    lo[k] = std::max(0, cellIndex(centre[k] - half[k], g.origin[k], g.cell, g.dims[k]));
+    hi[k] = std::min(g.dims[k] - 1, cellIndex(centre[k] + half[k], g.origin[k], g.cell, g.dims[k]));
     if (lo[k] > hi[k]) return;
   }
   for (int z = lo.z(); z <= hi.z(); ++z)
@@ -155,8 +162,8 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
     const Vec3 y = go.worldFrame ? x : Vec3(rtOther * (x - so.position));
     Eigen::Vector3i lo, hi;
     for (int k = 0; k < 3; ++k) {
-      lo[k] = std::max(0, static_cast<int>(std::floor((y[k] - reach - go.origin[k]) / go.cell)));
-      hi[k] = std::min(go.dims[k] - 1, static_cast<int>(std::floor((y[k] + reach - go.origin[k]) / go.cell)));
+      lo[k] = std::max(0, cellIndex(y[k] - reach, go.origin[k], go.cell, go.dims[k]));
+      hi[k] = std::min(go.dims[k] - 1, cellIndex(y[k] + reach, go.origin[k], go.cell, go.dims[k]));
       if (lo[k] > hi[k]) return;
     }
     for (int z = lo.z(); z <= hi.z(); ++z)

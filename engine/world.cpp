@@ -38,6 +38,19 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   if (!def.material.valid() || def.material.index() >= materials_.size())
     return Error{"", 0, 0, "body '" + def.name + "' refers to an unknown material"};
   const Material& material = materials_[def.material.index()];
+  // input a step could not survive: non-finite values, absurd sizes
+  constexpr double kWorldLimit = 1e9;  // [m]
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 x = def.position + def.orientation * cloud.positions[i];
+    if (!x.allFinite() || x.cwiseAbs().maxCoeff() > kWorldLimit)
+      return Error{"", 0, 0, "body '" + def.name + "' has a particle at a non-finite or too distant position; expected coordinates within 1e9 m"};
+    const double r = cloud.radii[i];
+    if (!(r > 0.0) || !(r <= kWorldLimit))
+      return Error{"", 0, 0, "body '" + def.name + "' has a particle radius of " + std::to_string(r) + " m; expected a positive, finite radius"};
+  }
+  if (!def.position.allFinite() || !def.linearVelocity.allFinite() || !def.angularVelocity.allFinite() ||
+      !def.orientation.coeffs().allFinite())
+    return Error{"", 0, 0, "body '" + def.name + "' has a non-finite pose or velocity"};
 
   // particle masses: explicit, or density x the volume each particle stands for
   std::vector<double> masses(n);

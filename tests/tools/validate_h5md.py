@@ -130,6 +130,38 @@ def validate(path, scene=None, frames=None):
     trans = 0.5 * (bmass[None, :] * (bvel ** 2).sum(axis=2)).sum(axis=1)
     expect(np.all(trans <= kin * (1 + 1e-9) + 1e-12), "kinetic energy below the bodies' translational energy")
 
+    # /contacts: ragged per-frame arrays; every record agrees with the frame's positions
+    cnt_obs, _, _ = element(f["observables"], "contact_count", (), "i")
+    element(f["observables"], "max_penetration", (), "f")
+    c = f["contacts"]
+    expect(np.array_equal(c["step"][()], step), "contacts sampled at different steps")
+    offset, count = c["offset"][()], c["count"][()]
+    expect(offset.shape == count.shape == (T,), "contacts offset/count must be [T]")
+    expect(offset[0] == 0 and np.array_equal(offset[1:], np.cumsum(count)[:-1]), "contact offsets are not cumulative")
+    expect(np.array_equal(count, cnt_obs), "contact_count observable != contacts per frame")
+    N = int(count.sum())
+    a, b, plane = c["particle_a"][()], c["particle_b"][()], c["plane"][()]
+    point, normal, depth = c["point"][()], c["normal"][()], c["depth"][()]
+    expect(a.shape == b.shape == plane.shape == depth.shape == (N,) and point.shape == normal.shape == (N, 3),
+           "contact arrays have inconsistent lengths")
+    expect(np.all((b >= 0) != (plane >= 0)), "a contact is either a particle pair or a particle-plane contact")
+    expect(np.all(depth > 0) and np.allclose(np.linalg.norm(normal, axis=1), 1.0, atol=1e-12), "bad contact depth or normal")
+    planes = par["planes"][()]
+    for t in range(T):
+        s, e = offset[t], offset[t] + count[t]
+        pa, pb = a[s:e], b[s:e]
+        pair = pb >= 0
+        xa = pos[t, pa]
+        if pair.any():
+            d = np.linalg.norm(pos[t, pb[pair]] - xa[pair], axis=1)
+            expect(np.allclose(depth[s:e][pair], radius[pa[pair]] + radius[pb[pair]] - d, atol=1e-12),
+                   f"frame {t}: contact depth != r_a + r_b - distance")
+        if (~pair).any():
+            pl = planes[plane[s:e][~pair]]
+            height = (pl[:, :3] * xa[~pair]).sum(axis=1) - pl[:, 3]
+            expect(np.allclose(depth[s:e][~pair], radius[pa[~pair]] - height, atol=1e-12),
+                   f"frame {t}: plane contact depth != r - height")
+
     # /parameters
     text = par["scene"][()]
     text = text.decode() if isinstance(text, bytes) else text
@@ -179,6 +211,7 @@ def self_test(path):
         "energy": lambda f: f["observables/total_energy/value"].__setitem__(0, f["observables/total_energy/value"][0] + 1.0),
         "body index": lambda f: f["particles/all/body/value"].__setitem__((0, 0), 999),
         "missing velocity": lambda f: f["particles/all"].__delitem__("velocity"),
+        "contact offsets": lambda f: f["contacts/offset"].__setitem__(-1, f["contacts/offset"][-1] + 1),
     }
     tmp = tempfile.mkdtemp()
     try:
