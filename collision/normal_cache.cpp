@@ -1,6 +1,57 @@
 #include "collision/normal_cache.hpp"
 
+#include "collision/particle_contacts.hpp"
+
 namespace volpar {
+
+namespace {
+
+/// The estimation rule for one particle: offset from the neighbours' mean, surface when it is large.
+void estimateOne(const Vec3& x, const Vec3& sum, double distSum, int count, std::uint8_t& surface, Vec3& normal) {
+  normal = Vec3::Zero();
+  surface = 0;
+  if (count == 0) {
+    surface = 1;  // a lone particle: surface, no preferred direction
+    return;
+  }
+  const Vec3 offset = x - sum / count;  // from the neighbours' mean towards the particle
+  const double meanDist = distSum / count;
+  if (count < 4 || offset.norm() > 0.15 * meanDist) {
+    surface = 1;
+    if (offset.norm() > 1e-9 * meanDist) normal = offset.normalized();
+  }
+}
+
+}  // namespace
+
+std::size_t recomputeNormals(std::span<const ParticleId> ids, ParticleStore& p, const BodyStore& bodies,
+                             const ContactFinder& adjacency, NormalCache& cache) {
+  for (const ParticleId id : ids) {
+    const std::size_t i = id.index();
+    const bool world = bodies.info[p.body[i].index()].kind == BodyKind::Deformable;
+    const std::vector<Vec3>& x = world ? p.position : p.local;
+    Vec3 sum = Vec3::Zero();
+    double dist = 0.0;
+    int count = 0;
+    for (const ParticleId n : adjacency.neighbours(id)) {
+      sum += x[n.index()];
+      dist += (x[n.index()] - x[i]).norm();
+      ++count;
+    }
+    std::uint8_t surface = 0;
+    Vec3 normal;
+    estimateOne(x[i], sum, dist, count, surface, normal);
+    if (surface) {
+      p.flags[i] |= kParticleSurface;
+      if (p.normalIndex[i] < 0) p.normalIndex[i] = cache.add(normal);
+      else cache.set(p.normalIndex[i], normal);
+    } else {
+      p.flags[i] &= static_cast<std::uint8_t>(~(kParticleSurface | kParticleEdge | kParticleCorner));
+      p.normalIndex[i] = -1;
+    }
+  }
+  return ids.size();
+}
 
 EstimatedNormals estimateNormals(std::span<const Vec3> positions,
                                  std::span<const std::array<std::uint32_t, 2>> connectors) {
@@ -20,18 +71,9 @@ EstimatedNormals estimateNormals(std::span<const Vec3> positions,
   EstimatedNormals out;
   out.normal.assign(n, Vec3::Zero());
   out.surface.assign(n, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (count[i] == 0) {
-      out.surface[i] = 1;  // a lone particle: surface, no preferred direction
-      continue;
-    }
-    const Vec3 offset = -sum[i] / count[i];  // from the neighbours' mean towards i
-    const double meanDist = dist[i] / count[i];
-    if (count[i] < 4 || offset.norm() > 0.15 * meanDist) {
-      out.surface[i] = 1;
-      if (offset.norm() > 1e-9 * meanDist) out.normal[i] = offset.normalized();
-    }
-  }
+  // sum holds the offsets to the neighbours: the neighbours' mean is x + sum / count
+  for (std::size_t i = 0; i < n; ++i)
+    estimateOne(positions[i], positions[i] * count[i] + sum[i], dist[i], count[i], out.surface[i], out.normal[i]);
   return out;
 }
 

@@ -10,9 +10,13 @@
 #include <span>
 #include <vector>
 
+#include "engine/core/body_store.hpp"
+#include "engine/core/particle_store.hpp"
 #include "engine/core/types.hpp"
 
 namespace volpar {
+
+class ContactFinder;
 
 class NormalCache {
  public:
@@ -39,5 +43,14 @@ struct EstimatedNormals {
 };
 [[nodiscard]] EstimatedNormals estimateNormals(std::span<const Vec3> positions,
                                                std::span<const std::array<std::uint32_t, 2>> connectors);
+
+/// Partial recomputation (DESIGN section 5), for breakage and deformation: re-estimates the normals of
+/// exactly the listed particles from their current connector neighbourhood (same rule as estimateNormals),
+/// in the frame the cache keeps for their body (principal frame for rigid and static bodies, world for
+/// deformable ones). A particle that became a surface particle gets a cache entry; one that became interior
+/// loses its surface flag. The caller chooses the particles (e.g. the k-ring around broken connectors), so
+/// the cost is bounded by that neighbourhood, never by the body. Returns how many were recomputed.
+std::size_t recomputeNormals(std::span<const ParticleId> ids, ParticleStore& particles, const BodyStore& bodies,
+                             const ContactFinder& adjacency, NormalCache& cache);
 
 }  // namespace volpar

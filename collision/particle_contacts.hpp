@@ -64,6 +64,11 @@ class ContactFinder {
 
   /// Whether particles a and b (of one body) are joined by an unbroken connector.
   [[nodiscard]] bool connected(ParticleId a, ParticleId b) const;
+  /// The particles joined to `p` by unbroken connectors, ascending (valid after find()).
+  [[nodiscard]] std::span<const ParticleId> neighbours(ParticleId p) const {
+    if (p.index() + 1 >= adjacencyStart_.size()) return {};
+    return {adjacency_.data() + adjacencyStart_[p.index()], adjacency_.data() + adjacencyStart_[p.index() + 1]};
+  }
 
  private:
   /// Uniform grid over one body's particle centres, in the body frame (rigid, static) or world frame

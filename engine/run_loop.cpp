@@ -39,7 +39,13 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
     const StepStatus status = world.step();
     summary.stepSeconds += world.stats().time.total;
     summary.stageTimes += world.stats().time;
-    summary.maxPenetration = std::max(summary.maxPenetration, world.stats().maxPenetration);
+    const StepStats& st = world.stats();
+    summary.maxPenetration = std::max(summary.maxPenetration, st.maxPenetration);
+    summary.patches += st.patches;
+    for (std::size_t k = 0; k < kPlaneCaseCount; ++k) summary.patchesByCase[k] += st.patchesByCase[k];
+    summary.candidates += st.candidates;
+    summary.lookAheads += st.lookAheads;
+    summary.unvalidatedPatches += st.unvalidatedPatches;
     ++summary.steps;
     if (hasFlag(status, StepStatus::NonFinite)) {
       failure = Error{"", 0, 0,

@@ -38,6 +38,12 @@ struct RunSummary {
   EnergyReport energyEnd;
   StageTimes stageTimes;         ///< summed over the run [s]
   double maxPenetration = 0.0;   ///< deepest particle overlap seen after any step [m]
+  // narrow-phase statistics summed over the steps
+  std::size_t patches = 0;
+  std::array<std::size_t, kPlaneCaseCount> patchesByCase{};
+  std::size_t candidates = 0;
+  std::size_t lookAheads = 0;
+  std::size_t unvalidatedPatches = 0;
   bool interrupted = false;
   std::string output;
 };

@@ -19,7 +19,18 @@ bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y())
 
 }  // namespace
 
-World::World(const WorldSettings& settings) : settings_(settings) {}
+World::World(const WorldSettings& settings) : settings_(settings) { narrowPhase_.setSettings(settings.planes); }
+
+NarrowPhaseInput World::narrowPhaseInput() const {
+  NarrowPhaseInput in;
+  in.particles = &particles_;
+  in.bodies = &bodies_;
+  in.normals = &normals_;
+  in.finder = &contactFinder_;
+  in.planes = planes_;
+  in.dt = settings_.dt;
+  return in;
+}
 
 MaterialId World::addMaterial(const Material& material) {
   materials_.push_back(material);
@@ -102,6 +113,9 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     particles_.local[p] = toPrincipal * (cloud.positions[i] - mp.centre);
     if (cloud.surface[i]) {
       particles_.flags[p] |= kParticleSurface;
+      const std::uint8_t features = i < cloud.features.size() ? cloud.features[i] : 0;
+      if (features == 2) particles_.flags[p] |= kParticleEdge;
+      if (features >= 3) particles_.flags[p] |= kParticleCorner;
       // rigid and static: principal frame; deformable: world frame
       const Vec3 n0 = cloud.normals[i];
       particles_.normalIndex[p] =
@@ -172,6 +186,17 @@ void World::refreshContacts() {
   stats_.contacts = found.contacts;
   stats_.contactGroups = found.contactGroups;
   stats_.maxPenetration = found.maxPenetration;
+  stats_.patches = found.patches;
+  stats_.patchesByCase = found.patchesByCase;
+  stats_.candidates = found.candidates;
+  stats_.lookAheads = found.lookAheads;
+  stats_.unvalidatedPatches = found.unvalidatedPatches;
+}
+
+std::size_t World::recomputeNormals(std::span<const ParticleId> ids) {
+  const std::size_t n = volpar::recomputeNormals(ids, particles_, bodies_, contactFinder_, normals_);
+  stats_.normalsRecomputed += n;
+  return n;
 }
 
 void World::detectCollisions() {
@@ -187,6 +212,16 @@ void World::detectCollisions() {
   t = Clock::now();
   contactFinder_.find(particles_, bodies_, connectors_, bodyPairs_, planePairs_, planes_, bodyBoxes_, contacts_);
   stats_.time.particleContacts = secondsSince(t);
+
+  t = Clock::now();
+  narrowPhase_.run(narrowPhaseInput(), contacts_, patches_);
+  stats_.time.narrowPhase = secondsSince(t);
+  const NarrowPhaseStats& np = patches_.stats;
+  stats_.patches = np.patches;
+  stats_.patchesByCase = np.byCase;
+  stats_.candidates = np.candidates;
+  stats_.lookAheads = np.lookAheads;
+  stats_.unvalidatedPatches = np.unvalidated;
   stats_.bodyPairs = bodyPairs_.size();
   stats_.planePairs = planePairs_.size();
   stats_.contacts = contacts_.contacts.size();

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "collision/broadphase.hpp"
+#include "collision/narrow_phase.hpp"
 #include "collision/normal_cache.hpp"
 #include "collision/particle_contacts.hpp"
 #include "engine/builders/particle_cloud.hpp"
@@ -80,8 +81,15 @@ class World {
   [[nodiscard]] const std::vector<Aabb>& bodyBoxes() const { return bodyBoxes_; }
   [[nodiscard]] const Broadphase& broadphase() const { return broadphase_; }
   [[nodiscard]] const ContactFinder& contactFinder() const { return contactFinder_; }
+  /// Contact patches with their separating planes, for the current contacts.
+  [[nodiscard]] const PatchSet& patches() const { return patches_; }
+  /// What the narrow phase reads from this world.
+  [[nodiscard]] NarrowPhaseInput narrowPhaseInput() const;
   /// Runs collision detection on the current state (done by step(); needed after adding bodies).
   void refreshContacts();
+  /// Recomputes the cached normals of exactly these particles from their connector neighbourhood
+  /// (recomputeNormals in collision/normal_cache.hpp); counted in stats().normalsRecomputed.
+  std::size_t recomputeNormals(std::span<const ParticleId> ids);
   [[nodiscard]] std::int64_t stepIndex() const { return stepIndex_; }
 
   /// World-frame outward normal of a surface particle (zero for interior particles).
@@ -120,6 +128,8 @@ class World {
   std::vector<BodyPair> bodyPairs_;
   std::vector<BodyPlanePair> planePairs_;
   ContactSet contacts_;
+  NarrowPhase narrowPhase_;
+  PatchSet patches_;
   bool contactsStale_ = true;
   double maxRadius_ = 0.0;
 

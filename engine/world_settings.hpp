@@ -1,5 +1,6 @@
 #pragma once
 
+#include "collision/separating_plane.hpp"
 #include "engine/core/plane.hpp"
 #include "engine/core/types.hpp"
 
@@ -13,6 +14,7 @@ struct WorldSettings {
   int substeps = 4;                          ///< XPBD substeps per step for deformable bodies
   /// How far the broadphase's fat boxes reach beyond the bodies [m]; 0 = the largest particle radius.
   double broadphaseMargin = 0.0;
+  PlaneSettings planes;                      ///< the separating-plane narrow phase
 };
 
 }  // namespace volpar

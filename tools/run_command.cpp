@@ -86,11 +86,19 @@ int run(const RunArgs& args) {
         .field("max_penetration", s.maxPenetration)
         .field("interrupted", s.interrupted)
         .field("output", s.output);
+    j.field("patches", s.patches)
+        .field("unvalidated_patches", s.unvalidatedPatches)
+        .field("look_aheads", s.lookAheads)
+        .field("candidates", s.candidates);
+    j.begin("patches_by_case");
+    for (std::size_t k = 0; k < kPlaneCaseCount; ++k) j.field(planeCaseName(static_cast<PlaneCase>(k)), s.patchesByCase[k]);
+    j.end();
     j.begin("stage_seconds")
         .field("integrate_velocities", t.integrateVelocities)
         .field("integrate_positions", t.integratePositions)
         .field("broadphase", t.broadphase)
         .field("particle_contacts", t.particleContacts)
+        .field("narrow_phase", t.narrowPhase)
         .end();
     j.end();
     std::cout << j.str() << std::endl;
@@ -102,10 +110,19 @@ int run(const RunArgs& args) {
     std::printf("speed        %.1f steps/s (%.3f s stepping, %.3f s wall)\n", s.stepsPerSecond, s.stepSeconds,
                 s.wallSeconds);
     std::printf("stages       integrate velocities %.3f s, integrate positions %.3f s, broadphase %.3f s, "
-                "particle contacts %.3f s\n",
-                t.integrateVelocities, t.integratePositions, t.broadphase, t.particleContacts);
+                "particle contacts %.3f s, narrow phase %.3f s\n",
+                t.integrateVelocities, t.integratePositions, t.broadphase, t.particleContacts, t.narrowPhase);
     std::printf("contacts     %zu at the end, deepest overlap during the run %.3g m\n", world.stats().contacts,
                 s.maxPenetration);
+    std::printf("planes       %zu patches over the run, %zu unvalidated (%.3g %%), %zu look-aheads, %zu candidates\n",
+                s.patches, s.unvalidatedPatches, s.patches ? 100.0 * static_cast<double>(s.unvalidatedPatches) / static_cast<double>(s.patches) : 0.0,
+                s.lookAheads, s.candidates);
+    if (s.patches > 0) {
+      std::printf("cases       ");
+      for (std::size_t k = 0; k < kPlaneCaseCount; ++k)
+        if (s.patchesByCase[k] > 0) std::printf(" %s %zu", planeCaseName(static_cast<PlaneCase>(k)), s.patchesByCase[k]);
+      std::printf("\n");
+    }
     std::printf("energy       %.9g J -> %.9g J (drift %.3g J)\n", s.energyStart.total(), s.energyEnd.total(), drift);
     if (!s.output.empty())
       std::printf("trajectory   %s (%zu frames), sidecar %s\n", s.output.c_str(), s.frames, sidecarPath(s.output).c_str());

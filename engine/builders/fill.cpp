@@ -115,14 +115,21 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
           if (d > 0.5 * s && d < 1.01 * s && !keptSet.contains(nb)) missing.push_back((q - p) / d);
         }
     Vec3 normal = Vec3::Zero();
+    int used = 0;
     if (!missing.empty()) {
       shape.featureNormals(p, band, features);
       for (const Vec3& n : features) {
         double facing = -1.0;
         for (const Vec3& o : missing) facing = std::max(facing, n.dot(o));
-        if (facing > 0.5) normal += n;
+        if (facing > 0.5) {
+          normal += n;
+          ++used;
+        }
       }
-      if (normal.norm() < 1e-9 && !features.empty()) normal = features.front();  // nearest feature
+      if (normal.norm() < 1e-9 && !features.empty()) {
+        normal = features.front();  // nearest feature
+        used = 1;
+      }
       if (normal.norm() > 1e-9) normal.normalize();
     }
     cloud.positions.push_back(p);
@@ -130,6 +137,7 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
     cloud.volumes.push_back(cell);
     cloud.surface.push_back(missing.empty() ? 0 : 1);
     cloud.normals.push_back(normal);
+    cloud.features.push_back(static_cast<std::uint8_t>(std::min(used, 3)));
   }
   cloud.connectors = connectWithin(cloud.positions, settings.reach * s);
   return cloud;
@@ -174,6 +182,7 @@ Result<ParticleCloud> buildParticleList(const ParticleListSettings& in) {
   const EstimatedNormals est = estimateNormals(cloud.positions, cloud.connectors);
   cloud.normals = est.normal;
   cloud.surface = est.surface;
+  cloud.features.assign(n, 0);
   return cloud;
 }
 

@@ -15,6 +15,8 @@ struct ParticleCloud {
   std::vector<double> volumes;    ///< volume each particle stands for [m^3], [P] (share of the shape, or sphere volume)
   std::vector<Vec3> normals;      ///< outward unit normal of surface particles, zero otherwise, shape frame, [P]
   std::vector<std::uint8_t> surface;  ///< 1 for surface particles, [P]
+  /// Surface features the normal averages: 0 interior or unknown, 1 face, 2 edge, 3 or more corner, [P]
+  std::vector<std::uint8_t> features;
   std::vector<std::array<std::uint32_t, 2>> connectors;  ///< joined particle pairs (i < j), ascending
   double spacing = 0.0;           ///< lattice spacing [m]; 0 for explicit particle lists
 

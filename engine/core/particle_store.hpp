@@ -14,6 +14,8 @@ namespace volpar {
 /// Per-particle flag bits.
 enum ParticleFlag : std::uint8_t {
   kParticleSurface = 1u << 0,  ///< on the body's surface (has a cached normal)
+  kParticleEdge = 1u << 1,     ///< on an edge of its shape (its normal averages two faces)
+  kParticleCorner = 1u << 2,   ///< on a corner (its normal averages three or more faces)
 };
 
 struct ParticleStore {

@@ -1,6 +1,8 @@
 #pragma once
 // Counters and timings of one World::step(). They feed the run summary and /observables.
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 
 namespace volpar {
@@ -11,6 +13,7 @@ struct StageTimes {
   double integratePositions = 0.0;
   double broadphase = 0.0;
   double particleContacts = 0.0;
+  double narrowPhase = 0.0;
   double total = 0.0;
 
   StageTimes& operator+=(const StageTimes& o) {
@@ -18,6 +21,7 @@ struct StageTimes {
     integratePositions += o.integratePositions;
     broadphase += o.broadphase;
     particleContacts += o.particleContacts;
+    narrowPhase += o.narrowPhase;
     total += o.total;
     return *this;
   }
@@ -32,6 +36,12 @@ struct StepStats {
   std::size_t contacts = 0;         ///< touching particle pairs (particle-particle and particle-plane)
   std::size_t contactGroups = 0;    ///< body pairs, body-plane pairs and self-contacting bodies in contact
   double maxPenetration = 0.0;      ///< deepest particle overlap [m]
+  std::size_t patches = 0;          ///< contact patches (one separating plane each)
+  std::array<std::size_t, 10> patchesByCase{};  ///< by PlaneCase
+  std::size_t candidates = 0;       ///< candidate normals tried
+  std::size_t lookAheads = 0;       ///< look-aheads for single-contact patches
+  std::size_t unvalidatedPatches = 0;  ///< patches whose plane no candidate could validate
+  std::size_t normalsRecomputed = 0;   ///< cached surface normals recomputed this step
 };
 
 }  // namespace volpar

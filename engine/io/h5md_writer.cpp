@@ -330,6 +330,7 @@ struct H5mdWriter::Impl {
   Element position, velocity, particleBody;
   Element bodyPosition, bodyOrientation, bodyVelocity, bodyAngularVelocity;
   Element kinetic, potential, total, linearMomentum, angularMomentum, contactCount, maxPenetration;
+  Element patchCount, patchesByCase, unvalidatedPatches, lookAheads, candidates;
   ContactSeries contacts;
   // scratch, reused
   std::vector<std::int32_t> bodyIndex;
@@ -416,6 +417,17 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       impl->angularMomentum = Element(obs.get(), "angular_momentum", H5T_IEEE_F64LE, {3}, "kg m2 s-1", clock);
       impl->contactCount = Element(obs.get(), "contact_count", H5T_STD_I64LE, {}, "", clock);
       impl->maxPenetration = Element(obs.get(), "max_penetration", H5T_IEEE_F64LE, {}, "m", clock);
+      impl->patchCount = Element(obs.get(), "patch_count", H5T_STD_I64LE, {}, "", clock);
+      impl->patchesByCase = Element(obs.get(), "patches_by_case", H5T_STD_I64LE, {kPlaneCaseCount}, "", clock);
+      {
+        std::vector<std::string> names;
+        for (std::size_t k = 0; k < kPlaneCaseCount; ++k) names.push_back(planeCaseName(static_cast<PlaneCase>(k)));
+        Hid g = checked(H5Gopen2(obs.get(), "patches_by_case", H5P_DEFAULT), H5Gclose, "group");
+        stringDataset(g.get(), "case_names", names);
+      }
+      impl->unvalidatedPatches = Element(obs.get(), "unvalidated_patches", H5T_STD_I64LE, {}, "", clock);
+      impl->lookAheads = Element(obs.get(), "look_aheads", H5T_STD_I64LE, {}, "", clock);
+      impl->candidates = Element(obs.get(), "candidates", H5T_STD_I64LE, {}, "", clock);
     }
     // /contacts (the engine's own group): ragged per-frame arrays, on the particles' clock
     impl->contacts = ContactSeries(f);
@@ -509,6 +521,17 @@ Status H5mdWriter::writeFrame(const World& world) {
     const double deepest = world.stats().maxPenetration;
     m.contactCount.append(H5T_NATIVE_INT64, &contactCount, step, time);
     m.maxPenetration.append(H5T_NATIVE_DOUBLE, &deepest, step, time);
+    const StepStats& st = world.stats();
+    const auto asInt = [](std::size_t v) { return static_cast<std::int64_t>(v); };
+    const std::int64_t patches = asInt(st.patches), unvalidated = asInt(st.unvalidatedPatches),
+                       lookAheads = asInt(st.lookAheads), candidates = asInt(st.candidates);
+    std::array<std::int64_t, kPlaneCaseCount> byCase{};
+    for (std::size_t k = 0; k < kPlaneCaseCount; ++k) byCase[k] = asInt(st.patchesByCase[k]);
+    m.patchCount.append(H5T_NATIVE_INT64, &patches, step, time);
+    m.patchesByCase.append(H5T_NATIVE_INT64, byCase.data(), step, time);
+    m.unvalidatedPatches.append(H5T_NATIVE_INT64, &unvalidated, step, time);
+    m.lookAheads.append(H5T_NATIVE_INT64, &lookAheads, step, time);
+    m.candidates.append(H5T_NATIVE_INT64, &candidates, step, time);
     writeContacts(world.contacts());
 
     check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");

@@ -1,0 +1,291 @@
+// The separating-plane narrow phase on real volpar bodies: one test per configuration of the paper's
+// section 5, concave bodies (a peg in a U-shaped slot, a box on an L), patch grouping, look-ahead
+// leaving the world untouched, and partial normal recomputation.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <numbers>
+
+#include "engine/builders/fill.hpp"
+#include "engine/builders/obj_reader.hpp"
+#include "engine/world.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace volpar {
+namespace {
+
+ParticleCloud boxCloud(const Vec3& size, double r = 0.05, Lattice lattice = Lattice::Cubic, double spacing = 0.0) {
+  auto c = fillShape(BoxShape(size), {lattice, r, spacing});
+  EXPECT_TRUE(c.ok());
+  return c.value();
+}
+
+ParticleCloud meshCloud(const std::string& file, double r) {
+  auto m = readObj(test::sourcePath("scenes/meshes/" + file));
+  EXPECT_TRUE(m.ok() && m->makeSolid().ok());
+  auto c = fillShape(MeshShape(std::make_shared<const TriangleMesh>(m.value())), {Lattice::Cubic, r});
+  EXPECT_TRUE(c.ok());
+  return c.value();
+}
+
+Quat about(const Vec3& axis, double degrees) {
+  return Quat(Eigen::AngleAxisd(degrees * std::numbers::pi / 180.0, axis.normalized()));
+}
+
+double angleDeg(const Vec3& a, const Vec3& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / std::numbers::pi;
+}
+
+/// Two bodies without gravity: A (added first, the lower id) above B.
+struct Pair {
+  World world{[] {
+    WorldSettings s;
+    s.gravity = Vec3::Zero();
+    return s;
+  }()};
+  BodyId a, b;
+
+  Pair(const ParticleCloud& ca, const Quat& qa, const ParticleCloud& cb, const Quat& qb) {
+    const MaterialId m = world.addMaterial(Material{"m"});
+    BodyDef da;
+    da.name = "a";
+    da.material = m;
+    da.orientation = qa;
+    da.position = Vec3(0, 0, 5);  // out of the way until placed
+    BodyDef db = da;
+    db.name = "b";
+    db.orientation = qb;
+    db.position = Vec3::Zero();
+    a = world.addBody(da, ca).value();
+    b = world.addBody(db, cb).value();
+  }
+
+  const Vec3& x(ParticleId p) const { return world.particles().position[p.index()]; }
+
+  /// The particle of `body` that is lowest (highest when `up`), ties broken towards `near` in xy.
+  ParticleId extreme(BodyId body, bool up, const Vec3& near = Vec3::Zero()) const {
+    ParticleId best;
+    double bestKey = std::numeric_limits<double>::infinity();
+    for (const ParticleId p : world.bodies().info[body.index()].particles) {
+      const double z = up ? -x(p).z() : x(p).z();
+      const double key = std::round(z * 1e6) + 1e-3 * (x(p) - near).head<2>().norm();
+      if (key < bestKey) {
+        bestKey = key;
+        best = p;
+      }
+    }
+    return best;
+  }
+
+  /// Moves body A rigidly so that its particle p lands on `target`, then detects collisions.
+  void place(ParticleId p, const Vec3& target) {
+    world.bodyState(a).position += target - x(p);
+    world.syncParticles();
+    world.refreshContacts();
+  }
+
+  const ContactPatch& onlyPatch() const {
+    EXPECT_EQ(world.patches().patches.size(), 1u);
+    return world.patches().patches.at(0);
+  }
+};
+
+void expectPlane(const ContactPatch& p, PlaneCase expectedCase, const Vec3& expectedNormal, double toleranceDeg = 1e-6) {
+  EXPECT_EQ(p.planeCase, expectedCase) << planeCaseName(p.planeCase);
+  EXPECT_LT(angleDeg(p.normal, expectedNormal), toleranceDeg) << p.normal.transpose();
+  EXPECT_TRUE(p.validated) << "margin " << p.margin;
+}
+
+const Quat kCornerDown = Quat::FromTwoVectors(Vec3(-1, -1, -1).normalized(), Vec3(0, 0, -1));
+
+// a cube's corner particle on a face: exactly one contact, nothing new within the look-ahead
+TEST(SeparatingPlane, VertexFace11) {
+  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), kCornerDown, boxCloud(Vec3(0.5, 0.5, 0.2)), Quat::Identity());
+  const ParticleId corner = s.extreme(s.a, false);
+  EXPECT_TRUE(s.world.particles().flags[corner.index()] & kParticleCorner);
+  s.place(corner, Vec3(0, 0, 0.05 + 0.095));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 1u);
+  expectPlane(s.onlyPatch(), PlaneCase::VertexFace11, -Vec3::UnitZ());
+  EXPECT_EQ(s.world.stats().lookAheads, 1u);
+}
+
+// the corner in the groove between two face particles
+TEST(SeparatingPlane, VertexFace12) {
+  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), kCornerDown, boxCloud(Vec3(0.5, 0.5, 0.2)), Quat::Identity());
+  s.place(s.extreme(s.a, false), Vec3(0.05, 0, 0.05 + std::sqrt(0.095 * 0.095 - 0.05 * 0.05)));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 2u);
+  expectPlane(s.onlyPatch(), PlaneCase::VertexFace12, -Vec3::UnitZ());
+}
+
+// the corner in the hollow between three particles of a close-packed face
+TEST(SeparatingPlane, VertexFace13) {
+  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), kCornerDown, boxCloud(Vec3(0.6, 0.6, 0.3), 0.05, Lattice::Hcp), Quat::Identity());
+  // three mutually touching particles of B's top layer near the middle
+  const ParticleId p0 = s.extreme(s.b, true);
+  std::vector<ParticleId> top;
+  for (const ParticleId p : s.world.bodies().info[s.b.index()].particles)
+    if (std::abs(s.x(p).z() - s.x(p0).z()) < 1e-9 && (s.x(p) - s.x(p0)).norm() < 0.1 + 1e-9) top.push_back(p);
+  ParticleId p1 = top.at(1), p2;
+  for (const ParticleId p : top)
+    if (p != p0 && p != p1 && (s.x(p) - s.x(p1)).norm() < 0.1 + 1e-9) p2 = p;
+  ASSERT_TRUE(p2.valid());
+  const Vec3 hollow = (s.x(p0) + s.x(p1) + s.x(p2)) / 3.0;
+  const double h = std::sqrt(0.09 * 0.09 - (s.x(p0) - hollow).squaredNorm());
+  s.place(s.extreme(s.a, false), hollow + Vec3(0, 0, h));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 3u);
+  expectPlane(s.onlyPatch(), PlaneCase::VertexFace13, -Vec3::UnitZ());
+  EXPECT_EQ(s.onlyPatch().source, NormalSource::FaceB);
+}
+
+// crossing edges: one particle of A's edge between two of B's
+TEST(SeparatingPlane, EdgeEdge12) {
+  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), about(Vec3::UnitX(), 45), boxCloud(Vec3(0.2, 0.2, 0.2)), about(Vec3::UnitY(), 45));
+  const ParticleId mid = s.extreme(s.a, false);  // the middle particle of A's lower edge (nearest the axis)
+  EXPECT_TRUE(s.world.particles().flags[mid.index()] & kParticleEdge);
+  s.place(mid, Vec3(0, 0, s.x(s.extreme(s.b, true)).z() + 0.08));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 2u);
+  expectPlane(s.onlyPatch(), PlaneCase::EdgeEdge12, -Vec3::UnitZ());
+}
+
+// crossing edges, two particles each
+TEST(SeparatingPlane, EdgeEdge22) {
+  Pair s(boxCloud(Vec3(0.2, 0.2, 0.2)), about(Vec3::UnitX(), 45), boxCloud(Vec3(0.2, 0.2, 0.2)), about(Vec3::UnitY(), 45));
+  const ParticleId low = s.extreme(s.a, false, Vec3(0.05, 0, 0));
+  s.place(low, Vec3(0.05, 0, s.x(s.extreme(s.b, true)).z() + 0.06));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 4u);
+  expectPlane(s.onlyPatch(), PlaneCase::EdgeEdge22, -Vec3::UnitZ());
+  EXPECT_EQ(s.onlyPatch().source, NormalSource::LineLine);
+}
+
+// parallel edges: two particles above three collinear ones
+TEST(SeparatingPlane, EdgeEdge23Collinear) {
+  Pair s(boxCloud(Vec3(0.2, 0.2, 0.2)), about(Vec3::UnitY(), 45), boxCloud(Vec3(0.3, 0.3, 0.3)), about(Vec3::UnitY(), 45));
+  const ParticleId low = s.extreme(s.a, false, Vec3(0, 0.05, 0));
+  s.place(low, Vec3(0, 0.05, s.x(s.extreme(s.b, true)).z() + 0.08));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 4u);
+  expectPlane(s.onlyPatch(), PlaneCase::EdgeEdge23, -Vec3::UnitZ());
+}
+
+// an edge of two particles on a face
+TEST(SeparatingPlane, EdgeFace23) {
+  Pair s(boxCloud(Vec3(0.2, 0.2, 0.2)), about(Vec3::UnitX(), 45), boxCloud(Vec3(0.6, 0.6, 0.2)), Quat::Identity());
+  s.place(s.extreme(s.a, false, Vec3(0.05, 0, 0)), Vec3(0.05, 0, 0.05 + 0.08));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 4u);  // each edge particle in a groove of the face
+  expectPlane(s.onlyPatch(), PlaneCase::EdgeFace23, -Vec3::UnitZ());
+  EXPECT_EQ(s.onlyPatch().source, NormalSource::FaceB);
+}
+
+// an edge of three collinear particles on a face
+TEST(SeparatingPlane, EdgeFace33Collinear) {
+  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), about(Vec3::UnitX(), 45), boxCloud(Vec3(0.6, 0.6, 0.2)), Quat::Identity());
+  s.place(s.extreme(s.a, false), Vec3(0, 0, 0.05 + 0.06));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 12u);
+  expectPlane(s.onlyPatch(), PlaneCase::EdgeFace33, -Vec3::UnitZ());
+}
+
+// face on face
+TEST(SeparatingPlane, FaceFace) {
+  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), about(Vec3::UnitZ(), 0), boxCloud(Vec3(0.5, 0.5, 0.2)), Quat::Identity());
+  s.place(s.extreme(s.a, false), Vec3(0, 0, 0.05 + 0.095));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 9u);
+  expectPlane(s.onlyPatch(), PlaneCase::FaceFace, -Vec3::UnitZ());
+  for (std::uint32_t i = 0; i < 9; ++i) EXPECT_NEAR(s.world.patches().depthAlongNormal[i], 0.005, 1e-12);
+}
+
+// a peg pressed into a U-shaped slot touches both walls: two patches with the walls' normals, where the
+// bodies' centre-to-centre direction points straight up
+TEST(SeparatingPlane, PegInSlotGetsOnePlanePerWall) {
+  const ParticleCloud u = meshCloud("u_shape.obj", 0.05);
+  const ParticleCloud peg = boxCloud(Vec3(0.22, 0.22, 0.33), 0.055, Lattice::Cubic, 0.11);
+  Pair s(u, Quat::Identity(), peg, Quat::Identity());
+  // the U (A) back to its file's coordinates, the peg (B) into the slot
+  s.world.bodyState(s.a).position -= Vec3(0, 0, 5);
+  s.world.bodyState(s.b).position = Vec3(0.3, 0.1, 0.375);
+  s.world.syncParticles();
+  s.world.refreshContacts();
+  const auto& patches = s.world.patches().patches;
+  ASSERT_EQ(patches.size(), 2u);
+  const Vec3 centres = s.world.bodies().state[s.b.index()].position - s.world.bodies().state[s.a.index()].position;
+  EXPECT_LT(angleDeg(centres, Vec3::UnitZ()), 1e-9);  // the bodies' centres: straight up
+  std::vector<Vec3> normals{patches[0].normal, patches[1].normal};
+  std::sort(normals.begin(), normals.end(), [](const Vec3& x, const Vec3& y) { return x.x() < y.x(); });
+  // from the U into the peg: the right wall pushes towards -x, the left wall towards +x
+  EXPECT_LT(angleDeg(normals[0], -Vec3::UnitX()), 1.0) << normals[0].transpose();
+  EXPECT_LT(angleDeg(normals[1], Vec3::UnitX()), 1.0) << normals[1].transpose();
+  for (const ContactPatch& p : patches) EXPECT_TRUE(p.validated);
+}
+
+// a box on the far end of an L's long leg: the plane is the leg's face, the centre line is 40 degrees off
+TEST(SeparatingPlane, BoxOnAnLGetsTheFaceNormal) {
+  const ParticleCloud l = meshCloud("l_shape.obj", 0.05);
+  Pair s(boxCloud(Vec3(0.2, 0.2, 0.2)), Quat::Identity(), l, Quat::Identity());
+  // the L lies in the xy plane (z in [0, 0.2]); the box sits on its top face over the end of the x leg
+  s.place(s.extreme(s.a, false, Vec3(0.45, 0.05, 0)), Vec3(0.45, 0.05, 0.15 + 0.095));
+  ASSERT_EQ(s.world.patches().patches.size(), 1u);
+  const ContactPatch& p = s.onlyPatch();
+  EXPECT_LT(angleDeg(p.normal, -Vec3::UnitZ()), 1e-6);
+  const Vec3 centres = s.world.bodies().state[s.b.index()].position - s.world.bodies().state[s.a.index()].position;
+  EXPECT_GT(angleDeg(centres, -Vec3::UnitZ()), 30.0);
+}
+
+TEST(SeparatingPlane, LookAheadLeavesTheWorldBitForBitUnchanged) {
+  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), kCornerDown, boxCloud(Vec3(0.5, 0.5, 0.2)), Quat::Identity());
+  s.world.bodyState(s.a).linearVelocity = Vec3(0.3, -0.2, -1.0);
+  s.world.bodyState(s.a).angularVelocity = Vec3(1.0, 2.0, -0.5);
+  s.place(s.extreme(s.a, false), Vec3(0.01, 0.02, 0.05 + 0.097));
+  ASSERT_EQ(s.world.contacts().contacts.size(), 1u);
+  const ParticleStore before = s.world.particles();
+  const BodyStore bodiesBefore = s.world.bodies();
+  PatchSet patches;
+  NarrowPhase np;
+  np.run(s.world.narrowPhaseInput(), s.world.contacts(), patches);
+  EXPECT_EQ(patches.stats.lookAheads, 1u);
+  const ParticleStore& after = s.world.particles();
+  ASSERT_EQ(after.size(), before.size());
+  EXPECT_EQ(std::memcmp(after.position.data(), before.position.data(), before.size() * sizeof(Vec3)), 0);
+  EXPECT_EQ(std::memcmp(after.velocity.data(), before.velocity.data(), before.size() * sizeof(Vec3)), 0);
+  for (std::size_t b = 0; b < 2; ++b) {
+    const BodyState& x = s.world.bodies().state[b];
+    const BodyState& y = bodiesBefore.state[b];
+    EXPECT_TRUE(x.position == y.position && x.orientation.coeffs() == y.orientation.coeffs() &&
+                x.linearVelocity == y.linearVelocity && x.angularVelocity == y.angularVelocity);
+  }
+}
+
+TEST(SeparatingPlane, PatchesGroupByConnectorAdjacency) {
+  // two separate touching regions between the same pair of bodies (an upside-down U over a bar)
+  const ParticleCloud u = meshCloud("u_shape.obj", 0.05);
+  Pair s(u, about(Vec3::UnitX(), 180), boxCloud(Vec3(0.8, 0.2, 0.2)), Quat::Identity());
+  // the U's legs (pointing down, x in [0, 0.2] and [0.4, 0.6]) stand on the bar, centred over it
+  s.place(s.extreme(s.a, false, Vec3(0, 0, 0)), Vec3(0.05 - 0.3, 0.05, 0.05 + 0.095));
+  EXPECT_EQ(s.world.contacts().groups.size(), 1u);
+  EXPECT_EQ(s.world.patches().patches.size(), 2u);
+  for (const ContactPatch& p : s.world.patches().patches) EXPECT_LT(angleDeg(p.normal, -Vec3::UnitZ()), 1e-6);
+}
+
+TEST(NormalCache, PartialRecomputationReproducesTheBuildersNormalsNearby) {
+  // a 5x5x5 block given as an explicit list: recompute a handful of particles, count exactly those
+  World w = test::worldFromString(R"(
+dt: 0.01
+steps: 1
+bodies:
+  - shape: {box: {size: [0.5, 0.5, 0.5]}}
+    fill: {radius: 0.05}
+)");
+  w.refreshContacts();
+  std::vector<ParticleId> some{ParticleId(0u), ParticleId(2u), ParticleId(62u)};
+  std::vector<Vec3> before;
+  for (const ParticleId p : some) before.push_back(w.particleNormal(p));
+  const std::size_t n = w.recomputeNormals(some);
+  EXPECT_EQ(n, some.size());
+  EXPECT_EQ(w.stats().normalsRecomputed, some.size());
+  // the centre particle stays interior; a face particle keeps its face normal; a corner points outwards
+  EXPECT_TRUE(w.particleNormal(ParticleId(62u)).isZero());
+  EXPECT_LT(angleDeg(w.particleNormal(ParticleId(2u)), before[1]), 1e-9);
+  EXPECT_LT(angleDeg(w.particleNormal(ParticleId(0u)), before[0]), 1.0);
+}
+
+}  // namespace
+}  // namespace volpar
