@@ -10,6 +10,8 @@ void Broadphase::addBody(BodyId id, const Aabb& tight, bool isStatic) {
   p.isStatic = isStatic;
   p.node = (isStatic ? static_ : moving_).createProxy(tight, isStatic ? 0.0 : margin_, id.value);
   if (!isStatic) movingBodies_.insert(std::lower_bound(movingBodies_.begin(), movingBodies_.end(), id), id);
+  if (moved_.size() <= id.index()) moved_.resize(id.index() + 1, 0);
+  pairsDirty_ = true;
 }
 
 void Broadphase::removeBody(BodyId id) {
@@ -18,12 +20,19 @@ void Broadphase::removeBody(BodyId id) {
   (p.isStatic ? static_ : moving_).destroyProxy(p.node);
   p.node = AabbTree::kNull;
   if (!p.isStatic) movingBodies_.erase(std::lower_bound(movingBodies_.begin(), movingBodies_.end(), id));
+  pairsDirty_ = true;
 }
 
 void Broadphase::moveBody(BodyId id, const Aabb& tight, const Vec3& displacement) {
   const Proxy& p = proxies_[id.index()];
   VOLPAR_ASSERT(!p.isStatic && p.node != AabbTree::kNull, "only moving bodies move");
-  if (moving_.moveProxy(p.node, tight, margin_, displacement)) ++reinsertions_;
+  if (moving_.moveProxy(p.node, tight, margin_, displacement)) {
+    ++reinsertions_;
+    if (!moved_[id.index()]) {
+      moved_[id.index()] = 1;
+      movedList_.push_back(id);
+    }
+  }
 }
 
 const Aabb& Broadphase::fatBox(BodyId id) const {
@@ -31,24 +40,59 @@ const Aabb& Broadphase::fatBox(BodyId id) const {
   return (p.isStatic ? static_ : moving_).fatAabb(p.node);
 }
 
+void Broadphase::rebuildPairs() {
+  pairs_.clear();
+  auto ordered = [](BodyId x, BodyId y) { return x < y ? BodyPair{x, y} : BodyPair{y, x}; };
+  moving_.selfPairs(stack_, [&](std::int32_t i, std::int32_t j) {
+    pairs_.push_back(ordered(BodyId(moving_.userData(i)), BodyId(moving_.userData(j))));
+  });
+  moving_.pairsWith(static_, stack_, [&](std::int32_t i, std::int32_t j) {
+    pairs_.push_back(ordered(BodyId(moving_.userData(i)), BodyId(static_.userData(j))));
+  });
+  std::sort(pairs_.begin(), pairs_.end());
+}
+
 void Broadphase::findPairs(std::span<const Plane> planes, std::vector<BodyPair>& pairs,
-                           std::vector<BodyPlanePair>& planePairs) const {
-  pairs.clear();
-  planePairs.clear();
+                           std::vector<BodyPlanePair>& planePairs) {
+  if (pairsDirty_) {
+    rebuildPairs();
+    pairsDirty_ = false;
+  } else if (!movedList_.empty()) {
+    // pairs of rebuilt fat boxes: drop those that no longer overlap ...
+    auto stale = [&](const BodyPair& pr) {
+      return (moved_[pr.a.index()] || moved_[pr.b.index()]) && !fatBox(pr.a).overlaps(fatBox(pr.b));
+    };
+    pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), stale), pairs_.end());
+    // ... and find their pairs anew (a pair of two rebuilt boxes is found from the smaller id only)
+    fresh_.clear();
+    for (const BodyId id : movedList_) {
+      const Aabb& box = fatBox(id);
+      moving_.query(box, [&](std::int32_t node) {
+        const BodyId other(moving_.userData(node));
+        if (other == id || (moved_[other.index()] && other < id)) return true;
+        fresh_.push_back(id < other ? BodyPair{id, other} : BodyPair{other, id});
+        return true;
+      });
+      static_.query(box, [&](std::int32_t node) {
+        const BodyId other(static_.userData(node));
+        fresh_.push_back(id < other ? BodyPair{id, other} : BodyPair{other, id});
+        return true;
+      });
+    }
+    std::sort(fresh_.begin(), fresh_.end());
+    merged_.resize(pairs_.size() + fresh_.size());
+    merged_.erase(std::merge(pairs_.begin(), pairs_.end(), fresh_.begin(), fresh_.end(), merged_.begin()), merged_.end());
+    merged_.erase(std::unique(merged_.begin(), merged_.end()), merged_.end());
+    std::swap(pairs_, merged_);
+  }
+  for (const BodyId id : movedList_) moved_[id.index()] = 0;
+  movedList_.clear();
   reinsertions_ = 0;
+
+  pairs.assign(pairs_.begin(), pairs_.end());
+  planePairs.clear();
   for (const BodyId id : movingBodies_) {
     const Aabb& box = moving_.fatAabb(proxies_[id.index()].node);
-    // moving-moving pairs once (the other body has the larger id), moving-static pairs always
-    moving_.query(box, [&](std::int32_t node) {
-      const BodyId other(moving_.userData(node));
-      if (id < other) pairs.push_back({id, other});
-      return true;
-    });
-    static_.query(box, [&](std::int32_t node) {
-      const BodyId other(static_.userData(node));
-      pairs.push_back(id < other ? BodyPair{id, other} : BodyPair{other, id});
-      return true;
-    });
     // the box reaches below a plane when its lowest corner along the normal does
     for (std::size_t k = 0; k < planes.size(); ++k) {
       const Plane& pl = planes[k];
@@ -56,7 +100,6 @@ void Broadphase::findPairs(std::span<const Plane> planes, std::vector<BodyPair>&
       if (lowest <= pl.offset) planePairs.push_back({id, PlaneId(k)});
     }
   }
-  std::sort(pairs.begin(), pairs.end());
 }
 
 }  // namespace volpar

@@ -1,8 +1,11 @@
 #pragma once
 // Body-level broadphase: two dynamic AABB trees, one for moving bodies and one for static bodies, so
-// static-static pairs never arise. Each step every moving body's fat box is queried against both trees;
-// the pair list is sorted, so its order is deterministic. Planes are tested against the fat boxes
-// directly (there are few of them).
+// static-static pairs never arise. The pair list persists between steps, as in Box2D: a body that stays
+// inside its fat box neither queries nor changes its pairs; each step only the pairs of bodies whose fat
+// boxes were rebuilt are re-examined (dropped if the fat boxes no longer overlap, added from one query per
+// such body). After bodies are added or removed the list is rebuilt by a simultaneous descent of the
+// moving tree against itself and against the static tree. The list is kept sorted, so its order is
+// deterministic. Planes are tested against the fat boxes directly (there are few of them).
 
 #include <cstdint>
 #include <span>
@@ -39,7 +42,7 @@ class Broadphase {
 
   /// Every pair of bodies whose fat boxes overlap (at least one of them moving), sorted; and every
   /// (moving body, plane) pair whose fat box reaches the plane's solid side.
-  void findPairs(std::span<const Plane> planes, std::vector<BodyPair>& pairs, std::vector<BodyPlanePair>& planePairs) const;
+  void findPairs(std::span<const Plane> planes, std::vector<BodyPair>& pairs, std::vector<BodyPlanePair>& planePairs);
 
   [[nodiscard]] const AabbTree& movingTree() const { return moving_; }
   [[nodiscard]] const AabbTree& staticTree() const { return static_; }
@@ -57,8 +60,16 @@ class Broadphase {
   AabbTree static_;
   std::vector<Proxy> proxies_;  // by body index
   std::vector<BodyId> movingBodies_;  // ascending
+  void rebuildPairs();
+
   double margin_ = 0.05;
-  mutable std::size_t reinsertions_ = 0;
+  std::size_t reinsertions_ = 0;
+  std::vector<std::pair<std::int32_t, std::int32_t>> stack_;  // traversal scratch
+  std::vector<BodyPair> pairs_;                // persistent, sorted
+  std::vector<BodyPair> fresh_, merged_;       // scratch
+  bool pairsDirty_ = true;
+  std::vector<std::uint8_t> moved_;            // by body: fat box rebuilt since the last findPairs
+  std::vector<BodyId> movedList_;
 };
 
 }  // namespace volpar
