@@ -314,12 +314,32 @@ void NarrowPhase::addCandidates(const NarrowPhaseInput& in, const Side& a, const
       }
     }
   }
-  // cached surface normals of each side, then the centre line
-  Vec3 na = Vec3::Zero(), nb = Vec3::Zero();
-  for (const ParticleId q : a.particles) na += worldNormal(in, q);
-  for (const ParticleId q : b.particles) nb -= worldNormal(in, q);
-  add(na, NormalSource::CachedA);
-  add(nb, NormalSource::CachedB);
+  // cached surface normals of each side: the exact face normals behind them, and their mean
+  auto cachedFaces = [&](const Side& side, double sign, NormalSource source) {
+    Vec3 mean = Vec3::Zero();
+    for (const ParticleId q : side.particles) {
+      const std::int32_t k = in.particles->normalIndex[q.index()];
+      if (k < 0) continue;
+      const BodyId body = in.particles->body[q.index()];
+      const bool world = in.bodies->info[body.index()].kind == BodyKind::Deformable;
+      const Quat& r = in.bodies->state[body.index()].orientation;
+      mean += (*in.normals)[k];
+      for (const Vec3& f : in.normals->faces(k)) {
+        const Vec3 n = sign * (world ? f : Vec3(r * f));
+        const bool seen = std::any_of(candidates_.begin(), candidates_.end(), [&](const Candidate& other) {
+          return other.source == source && (other.normal - n).squaredNorm() < 1e-12;
+        });
+        if (!seen) add(n, source);
+      }
+    }
+    if (!side.particles.empty()) {
+      const BodyId body = in.particles->body[side.particles[0].index()];
+      const bool world = in.bodies->info[body.index()].kind == BodyKind::Deformable;
+      add(sign * (world ? mean : Vec3(in.bodies->state[body.index()].orientation * mean)), source);
+    }
+  };
+  cachedFaces(a, 1.0, NormalSource::CachedA);
+  cachedFaces(b, -1.0, NormalSource::CachedB);
   add(b.centroid - a.centroid, NormalSource::CentreLine);
 }
 
@@ -393,7 +413,13 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
   const Vec3 fallback = deep.normal;
   const double rsum = p.radius[deep.a.index()] + (isPlane ? 0.0 : p.radius[deep.b.index()]);
   const double tol = settings_.validationTolerance * rsum;
+  // validation: centres on the right side of the plane through the deepest contact point (slack >= -tol);
+  // choice: among validated candidates the largest margin, the gap between the two sides' spheres along
+  // the normal (negative: their overlap), i.e. the least penetration; without any validated candidate,
+  // the one with the best slack
   double bestMargin = -std::numeric_limits<double>::infinity();
+  double bestSlack = -std::numeric_limits<double>::infinity();
+  bool bestValid = false;
   Candidate best{fallback, NormalSource::CentreLine};
   for (Candidate& cand : candidates_) {
     const Vec3 orient = ref.norm() > 1e-12 ? ref : fallback;
@@ -405,15 +431,29 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
       const Vec3 nq = worldNormal(in, q);
       return nq.isZero() || sign * nq.dot(cand.normal) > 0.05;
     };
-    double margin = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < ringA_.size(); ++i)
-      if (counts(ringA_[i], seedsA_.size(), i, 1.0))
-        margin = std::min(margin, -cand.normal.dot(p.position[ringA_[i].index()] - deep.point));
-    for (std::size_t i = 0; i < ringB_.size(); ++i)
-      if (counts(ringB_[i], seedsB_.size(), i, -1.0))
-        margin = std::min(margin, cand.normal.dot(p.position[ringB_[i].index()] - deep.point));
-    if (margin > bestMargin) {
+    double slack = std::numeric_limits<double>::infinity();
+    double reachA = -std::numeric_limits<double>::infinity();  // farthest A sphere along n
+    double reachB = std::numeric_limits<double>::infinity();   // nearest B sphere along n
+    for (std::size_t i = 0; i < ringA_.size(); ++i) {
+      if (!counts(ringA_[i], seedsA_.size(), i, 1.0)) continue;
+      const Vec3& x = p.position[ringA_[i].index()];
+      slack = std::min(slack, -cand.normal.dot(x - deep.point));
+      reachA = std::max(reachA, cand.normal.dot(x) + p.radius[ringA_[i].index()]);
+    }
+    for (std::size_t i = 0; i < ringB_.size(); ++i) {
+      if (!counts(ringB_[i], seedsB_.size(), i, -1.0)) continue;
+      const Vec3& x = p.position[ringB_[i].index()];
+      slack = std::min(slack, cand.normal.dot(x - deep.point));
+      reachB = std::min(reachB, cand.normal.dot(x) - p.radius[ringB_[i].index()]);
+    }
+    // a plane: its surface is the B side
+    if (isPlane) reachB = -plane->offset;
+    const double margin = reachB - reachA;
+    const bool valid = slack >= -tol;
+    if ((valid && (!bestValid || margin > bestMargin)) || (!valid && !bestValid && slack > bestSlack)) {
+      bestValid = valid;
       bestMargin = margin;
+      bestSlack = slack;
       best = cand;
     }
   }
@@ -421,7 +461,7 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
   patch.normal = best.normal;
   patch.source = best.source;
   patch.margin = bestMargin;
-  patch.validated = bestMargin >= -tol;
+  patch.validated = bestValid;
   patch.point = deep.point;
   if (!patch.validated) ++out.stats.unvalidated;
   ++out.stats.patches;

@@ -5,6 +5,7 @@
 // bodies are stored in the world frame. A zero normal means the particle is on the surface but has no
 // preferred direction (a lone particle).
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -20,17 +21,35 @@ class ContactFinder;
 
 class NormalCache {
  public:
-  /// Appends a normal and returns its index.
-  std::int32_t add(const Vec3& normal) {
+  /// Appends a normal, and the exact normals of the shape's faces it averages (an edge particle's two
+  /// faces, a corner's three; none for estimated normals), and returns its index.
+  std::int32_t add(const Vec3& normal, std::span<const Vec3> faces = {}) {
     normals_.push_back(normal);
+    Faces f{};
+    f.count = static_cast<std::uint8_t>(std::min<std::size_t>(faces.size(), 3));
+    for (std::size_t k = 0; k < f.count; ++k) f.normal[k] = faces[k];
+    faces_.push_back(f);
     return static_cast<std::int32_t>(normals_.size() - 1);
   }
   [[nodiscard]] const Vec3& operator[](std::int32_t index) const { return normals_[static_cast<std::size_t>(index)]; }
-  void set(std::int32_t index, const Vec3& normal) { normals_[static_cast<std::size_t>(index)] = normal; }
+  /// The face normals behind entry `index` (possibly none).
+  [[nodiscard]] std::span<const Vec3> faces(std::int32_t index) const {
+    const Faces& f = faces_[static_cast<std::size_t>(index)];
+    return {f.normal.data(), f.count};
+  }
+  void set(std::int32_t index, const Vec3& normal) {
+    normals_[static_cast<std::size_t>(index)] = normal;
+    faces_[static_cast<std::size_t>(index)].count = 0;  // recomputed normals are estimates
+  }
   [[nodiscard]] std::size_t size() const { return normals_.size(); }
 
  private:
+  struct Faces {
+    std::array<Vec3, 3> normal;
+    std::uint8_t count = 0;
+  };
   std::vector<Vec3> normals_;
+  std::vector<Faces> faces_;
 };
 
 /// Outward normals estimated from the connector neighbourhood: for particle i, the unit vector from the

@@ -85,6 +85,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   info.inertiaLocal = axes.moments;
   info.principalInShape = axes.rotation;
   info.comInShape = mp.centre;
+  info.source = def.source;
 
   BodyState state;
   state.orientation = (def.orientation * axes.rotation).normalized();
@@ -117,9 +118,12 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
       if (features == 2) particles_.flags[p] |= kParticleEdge;
       if (features >= 3) particles_.flags[p] |= kParticleCorner;
       // rigid and static: principal frame; deformable: world frame
-      const Vec3 n0 = cloud.normals[i];
-      particles_.normalIndex[p] =
-          normals_.add(def.kind == BodyKind::Deformable ? Vec3(def.orientation * n0) : Vec3(toPrincipal * n0));
+      const Quat toCache = def.kind == BodyKind::Deformable ? def.orientation : toPrincipal;
+      std::array<Vec3, 3> faces{};
+      std::size_t nf = 0;
+      if (i < cloud.featureNormals.size())
+        for (; nf < std::min<std::size_t>(features, 3); ++nf) faces[nf] = toCache * cloud.featureNormals[i][nf];
+      particles_.normalIndex[p] = normals_.add(toCache * cloud.normals[i], std::span<const Vec3>(faces.data(), nf));
     }
   }
   for (const auto& c : cloud.connectors) {

@@ -42,6 +42,7 @@ struct BodyDef {
   ConnectorParams connectors;              ///< rods for rigid and static bodies
   std::optional<double> particleMass;      ///< [kg] per particle; default density x particle volume
   std::optional<double> totalMass;         ///< [kg] spread evenly over the particles
+  SourceShape source;                      ///< the primitive the cloud was filled from, if any
 };
 
 /// Energies of the whole world [J].

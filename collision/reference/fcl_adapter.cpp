@@ -169,6 +169,76 @@ FclReport FclWorldReference::collide(const ParticleStore& p, const BodyStore& b,
   return report;
 }
 
+namespace {
+
+std::shared_ptr<fcl::CollisionGeometryd> geometry(const SourceShape& s) {
+  switch (s.kind) {
+    case SourceShape::Kind::Box: return std::make_shared<fcl::Boxd>(s.size.x(), s.size.y(), s.size.z());
+    case SourceShape::Kind::Sphere: return std::make_shared<fcl::Sphered>(s.radius);
+    case SourceShape::Kind::Cylinder: return std::make_shared<fcl::Cylinderd>(s.radius, s.length);
+    case SourceShape::Kind::Capsule: return std::make_shared<fcl::Capsuled>(s.radius, s.length);
+    default: return nullptr;
+  }
+}
+
+}  // namespace
+
+PrimitiveContact primitiveContact(const SourceShape& sa, const Vec3& pa, const Quat& qa, const SourceShape& sb,
+                                  const Vec3& pb, const Quat& qb) {
+  PrimitiveContact rc;
+  auto ga = geometry(sa), gb = geometry(sb);
+  if (!ga || !gb) return rc;
+  fcl::Transform3d xa = fcl::Transform3d::Identity(), xb = fcl::Transform3d::Identity();
+  xa.linear() = qa.toRotationMatrix();
+  xa.translation() = pa;
+  xb.linear() = qb.toRotationMatrix();
+  xb.translation() = pb;
+  fcl::CollisionObjectd a(ga, xa), b(gb, xb);
+  fcl::CollisionRequestd req(16, true);
+  fcl::CollisionResultd res;
+  if (!fcl::collide(&a, &b, req, res)) return rc;
+  rc.hit = true;
+  using K = SourceShape::Kind;
+  if (sa.kind == K::Sphere || sb.kind == K::Sphere) {  // closed form: trust collide()
+    const fcl::Contactd* c = &res.getContact(0);
+    for (std::size_t i = 1; i < res.numContacts(); ++i)
+      if (res.getContact(i).penetration_depth > c->penetration_depth) c = &res.getContact(i);
+    rc.depth = c->penetration_depth;
+    rc.normal = c->normal;
+    rc.normalValid = c->normal.norm() > 0.5;
+    return rc;
+  }
+  const bool capsules = sa.kind == K::Capsule && sb.kind == K::Capsule;
+  fcl::DistanceRequestd dreq(true, !capsules);
+  fcl::DistanceResultd dres;
+  try {
+    fcl::distance(&a, &b, dreq, dres);
+  } catch (const std::exception&) {
+    return rc;  // EPA gave up in a degenerate pose: no reference
+  }
+  if (dres.min_distance < 0) {
+    rc.depth = -dres.min_distance;
+    const Vec3 d = dres.nearest_points[0] - dres.nearest_points[1];
+    rc.normalValid = d.norm() > 1e-12;
+    if (rc.normalValid) rc.normal = d.normalized();
+  }
+  return rc;
+}
+
+std::vector<Vec3> flatFaceNormals(const SourceShape& s, const Quat& q) {
+  std::vector<Vec3> out;
+  if (s.kind == SourceShape::Kind::Box)
+    for (int k = 0; k < 3; ++k) {
+      out.push_back(q * Vec3::Unit(k));
+      out.push_back(-(q * Vec3::Unit(k)));
+    }
+  if (s.kind == SourceShape::Kind::Cylinder) {
+    out.push_back(q * Vec3::UnitZ());
+    out.push_back(-(q * Vec3::UnitZ()));
+  }
+  return out;
+}
+
 Comparison& Comparison::operator+=(const Comparison& o) {
   bodyPairMismatches += o.bodyPairMismatches;
   particlePairMismatches += o.particlePairMismatches;

@@ -21,6 +21,7 @@
 #include "engine/core/body_store.hpp"
 #include "engine/core/particle_store.hpp"
 #include "engine/core/plane.hpp"
+#include "engine/core/source_shape.hpp"
 
 namespace volpar::reference {
 
@@ -82,6 +83,22 @@ struct Comparison {
   [[nodiscard]] std::size_t mismatches() const { return bodyPairMismatches + particlePairMismatches + planeContactMismatches; }
   Comparison& operator+=(const Comparison& o);
 };
+
+/// FCL's contact between two primitives placed in the world (pose of each shape frame), following
+/// fcl-guide section 4: sphere pairs by collide() (closed form), capsule pairs by unsigned distance
+/// (closed form), every other pair by signed distance (GJK + EPA, the minimum translation). The normal
+/// points from a to b.
+struct PrimitiveContact {
+  bool hit = false;          ///< the primitives overlap or touch
+  bool normalValid = false;  ///< a normal could be determined
+  Vec3 normal = Vec3::Zero();
+  double depth = 0.0;        ///< penetration depth [m]
+};
+[[nodiscard]] PrimitiveContact primitiveContact(const SourceShape& a, const Vec3& originA, const Quat& orientationA,
+                                                const SourceShape& b, const Vec3& originB, const Quat& orientationB);
+
+/// Unit normals of the flat faces of a primitive in the world (box faces, cylinder caps); empty otherwise.
+[[nodiscard]] std::vector<Vec3> flatFaceNormals(const SourceShape& s, const Quat& orientation);
 
 /// Compares volpar's broadphase pairs and contacts with FCL's report.
 [[nodiscard]] Comparison compareContacts(const FclReport& fcl, std::span<const BodyPair> pairs,

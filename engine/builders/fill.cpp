@@ -116,6 +116,7 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
         }
     Vec3 normal = Vec3::Zero();
     int used = 0;
+    std::array<Vec3, 3> featureNormals{Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
     if (!missing.empty()) {
       shape.featureNormals(p, band, features);
       for (const Vec3& n : features) {
@@ -123,11 +124,13 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
         for (const Vec3& o : missing) facing = std::max(facing, n.dot(o));
         if (facing > 0.5) {
           normal += n;
+          if (used < 3) featureNormals[static_cast<std::size_t>(used)] = n;
           ++used;
         }
       }
       if (normal.norm() < 1e-9 && !features.empty()) {
         normal = features.front();  // nearest feature
+        featureNormals[0] = normal;
         used = 1;
       }
       if (normal.norm() > 1e-9) normal.normalize();
@@ -138,6 +141,7 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
     cloud.surface.push_back(missing.empty() ? 0 : 1);
     cloud.normals.push_back(normal);
     cloud.features.push_back(static_cast<std::uint8_t>(std::min(used, 3)));
+    cloud.featureNormals.push_back(featureNormals);
   }
   cloud.connectors = connectWithin(cloud.positions, settings.reach * s);
   return cloud;

@@ -17,6 +17,8 @@ struct ParticleCloud {
   std::vector<std::uint8_t> surface;  ///< 1 for surface particles, [P]
   /// Surface features the normal averages: 0 interior or unknown, 1 face, 2 edge, 3 or more corner, [P]
   std::vector<std::uint8_t> features;
+  /// The exact normals of those features (the first min(features, 3) entries are set), shape frame, [P]
+  std::vector<std::array<Vec3, 3>> featureNormals;
   std::vector<std::array<std::uint32_t, 2>> connectors;  ///< joined particle pairs (i < j), ascending
   double spacing = 0.0;           ///< lattice spacing [m]; 0 for explicit particle lists
 

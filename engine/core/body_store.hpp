@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "engine/core/ids.hpp"
+#include "engine/core/source_shape.hpp"
 #include "engine/core/types.hpp"
 
 namespace volpar {
@@ -43,6 +44,7 @@ struct BodyInfo {
   Quat principalInShape = Quat::Identity();    ///< rotation from principal-frame to shape-frame coordinates
   Vec3 comInShape = Vec3::Zero();              ///< centre of mass in shape-frame coordinates [m]
   std::vector<ParticleId> particles;           ///< the body's particles, ascending
+  SourceShape source;                          ///< the primitive it was filled from, if any
 };
 
 struct BodyStore {

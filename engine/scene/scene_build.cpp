@@ -29,6 +29,28 @@ std::unique_ptr<SolidShape> primitive(const ShapeDesc& shape) {
   return nullptr;
 }
 
+SourceShape sourceOf(const ShapeDesc& shape) {
+  SourceShape s;
+  if (const auto* b = std::get_if<BoxDesc>(&shape)) {
+    s.kind = SourceShape::Kind::Box;
+    s.size = b->size;
+  } else if (const auto* sp = std::get_if<SphereDesc>(&shape)) {
+    s.kind = SourceShape::Kind::Sphere;
+    s.radius = sp->radius;
+  } else if (const auto* c = std::get_if<CylinderDesc>(&shape)) {
+    s.kind = SourceShape::Kind::Cylinder;
+    s.radius = c->radius;
+    s.length = c->height;
+  } else if (const auto* cp = std::get_if<CapsuleDesc>(&shape)) {
+    s.kind = SourceShape::Kind::Capsule;
+    s.radius = cp->radius;
+    s.length = cp->length;
+  } else if (std::holds_alternative<MeshDesc>(shape)) {
+    s.kind = SourceShape::Kind::Mesh;
+  }
+  return s;
+}
+
 std::string instanceName(const BodyDesc& b, int i, int j, int k) {
   const auto& c = b.repeat.count;
   if (c[0] * c[1] * c[2] == 1) return b.name;
@@ -111,6 +133,7 @@ Result<BuiltScene> buildScene(const SceneDesc& desc) {
           def.connectors = b.connectors;
           def.particleMass = b.particleMass;
           def.totalMass = b.mass;
+          def.source = sourceOf(b.shape);
           auto id = world.addBody(def, *cloud);
           if (!id) return at(desc, b.mark, id.error().message);
           built.bodySource.push_back(d);
