@@ -5,13 +5,19 @@
 //                    random walk, warmed up untimed), all overlapping pairs found (volpar::Broadphase vs
 //                    fcl::DynamicAABBTreeCollisionManagerd); timed by hand around the update, so drawing
 //                    the new positions is not counted
-//   pair/...         touching particle pairs between two lattice bodies (World::refreshContacts vs one
-//                    FCL manager of spheres per body, manager against manager)
-//   pile/...         a grid of N 27-particle bodies, every touching particle pair (World::refreshContacts
-//                    vs one FCL manager over all spheres, self-collide)
+//   pair/...         touching particle pairs between two lattice bodies (ContactFinder::find vs one FCL
+//                    manager of spheres per body, manager against manager)
+//   pile/...         a grid of N 27-particle bodies, every touching particle pair (ContactFinder::find vs
+//                    one FCL manager over all spheres, self-collide)
+//
+// The particle-contact benchmarks time the contact search alone: World::refreshContacts() runs once,
+// untimed (broadphase pairs, tight boxes, and the separating-plane narrow phase, which is not timed
+// here: tools/bench/narrow_phase_bench.cpp), then a ContactFinder of the benchmark's own, with every body
+// registered, searches the world's body pairs on the world's data.
 //
 // Before the benchmarks run, every scene is checked: FCL's pair set must equal volpar's (for the
-// broadphase: volpar's fat-box pairs whose tight boxes overlap). The outcome goes to stderr, and the
+// broadphase: volpar's fat-box pairs whose tight boxes overlap; for contacts: the pairs of the benchmark's
+// ContactFinder, which must also equal the world's own contacts). The outcome goes to stderr, and the
 // program exits with status 1 if a check failed.
 
 #include <benchmark/benchmark.h>
@@ -343,12 +349,29 @@ std::vector<Vec3> bodyParticles(const volpar::World& w, BodyId id) {
   return out;
 }
 
-std::vector<IdPair> volparContactPairs(const volpar::World& w) {
+std::vector<IdPair> volparContactPairs(const volpar::ContactSet& set) {
   std::vector<IdPair> out;
-  for (const auto& c : w.contacts().contacts) out.push_back(ordered(c.a.value, c.b.value));
+  for (const auto& c : set.contacts) out.push_back(ordered(c.a.value, c.b.value));
   std::sort(out.begin(), out.end());
   return out;
 }
+
+/// The contact search alone, on a world whose refreshContacts() has run: a ContactFinder of its own (every
+/// body registered once) reading the world's particles, bodies, connectors, broadphase pairs, planes and
+/// tight boxes, writing its own ContactSet.
+struct ContactSearch {
+  const volpar::World& world;
+  volpar::ContactFinder finder;
+  volpar::ContactSet set;
+
+  explicit ContactSearch(const volpar::World& w) : world(w) {
+    for (std::size_t i = 0; i < w.bodies().size(); ++i) finder.addBody(BodyId(i), w.particles(), w.bodies());
+  }
+  void find() {
+    finder.find(world.particles(), world.bodies(), world.connectors(), world.bodyPairs(), world.planePairs(),
+                world.planes(), world.bodyBoxes(), set);
+  }
+};
 
 /// Narrow phase on a sphere pair the broadphase reported; `body` (when set) skips pairs of one body.
 struct SphereCollector {
@@ -377,12 +400,18 @@ std::size_t grazing(const volpar::World& w, const std::vector<IdPair>& pairs) {
   return n;
 }
 
+/// FCL's pairs against those of a ContactSearch on `w` (which must also equal the world's own contacts).
 void checkPairs(const std::string& what, const volpar::World& w, std::vector<IdPair> fcl) {
   std::sort(fcl.begin(), fcl.end());
-  const auto v = volparContactPairs(w);
+  ContactSearch search(w);
+  search.find();
+  const auto v = volparContactPairs(search.set);
+  const bool sameAsWorld = v == volparContactPairs(w.contacts());
   const std::size_t g = grazing(w, fcl) + grazing(w, v);
-  report(v == fcl, what + ": FCL " + std::to_string(fcl.size()) + " touching pairs, volpar " + std::to_string(v.size()) +
-                       (v == fcl ? " (same set)" : " (sets differ)") + ", grazing " + std::to_string(g));
+  report(v == fcl && sameAsWorld,
+         what + ": FCL " + std::to_string(fcl.size()) + " touching pairs, volpar " + std::to_string(v.size()) +
+             (v == fcl ? " (same set)" : " (sets differ)") + (sameAsWorld ? ", = world's" : ", NOT the world's") +
+             ", grazing " + std::to_string(g));
 }
 
 // --- 2. one body pair
@@ -446,12 +475,14 @@ void checkPair(const PairCase& c) {
 }
 
 void BM_PairVolpar(benchmark::State& state, const PairCase& c) {
-  auto w = makePairWorld(c);
+  auto w = makePairWorld(c);  // refreshContacts() has run
+  ContactSearch search(*w);
+  search.find();  // untimed: builds the connector adjacency and sizes the buffers, as in the world's finder
   for (auto _ : state) {
-    w->refreshContacts();
-    benchmark::DoNotOptimize(w->contacts().contacts.data());
+    search.find();
+    benchmark::DoNotOptimize(search.set.contacts.data());
   }
-  state.counters["contacts"] = static_cast<double>(w->contacts().contacts.size());
+  state.counters["contacts"] = static_cast<double>(search.set.contacts.size());
 }
 
 void BM_PairFclQuery(benchmark::State& state, const PairCase& c) {
@@ -524,12 +555,14 @@ void checkPile(std::size_t n) {
 }
 
 void BM_PileVolpar(benchmark::State& state) {
-  auto w = makePileWorld(static_cast<std::size_t>(state.range(0)));
+  auto w = makePileWorld(static_cast<std::size_t>(state.range(0)));  // refreshContacts() has run
+  ContactSearch search(*w);
+  search.find();  // untimed: builds the connector adjacency and sizes the buffers, as in the world's finder
   for (auto _ : state) {
-    w->refreshContacts();
-    benchmark::DoNotOptimize(w->contacts().contacts.data());
+    search.find();
+    benchmark::DoNotOptimize(search.set.contacts.data());
   }
-  state.counters["contacts"] = static_cast<double>(w->contacts().contacts.size());
+  state.counters["contacts"] = static_cast<double>(search.set.contacts.size());
   state.counters["body_pairs"] = static_cast<double>(w->bodyPairs().size());
 }
 
