@@ -475,7 +475,14 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
     if (isPlane) {
       d = c.depth;  // the plane's normal is the contact's own
     } else {
-      d = p.radius[c.a.index()] + p.radius[c.b.index()] - patch.normal.dot(p.position[c.b.index()] - p.position[c.a.index()]);
+      // how far the pair must move apart along the normal for the spheres to separate:
+      // sqrt(rsum^2 - |u_perp|^2) - u . n with u = x_b - x_a (0 for spheres that just touch, also when one
+      // sits in the groove between others)
+      const Vec3 u = p.position[c.b.index()] - p.position[c.a.index()];
+      const double rs = p.radius[c.a.index()] + p.radius[c.b.index()];
+      const double along = patch.normal.dot(u);
+      const double perp2 = std::max(u.squaredNorm() - along * along, 0.0);
+      d = std::sqrt(std::max(rs * rs - perp2, 0.0)) - along;
     }
     out.depthAlongNormal[idx[i]] = d;
     patch.depth = std::max(patch.depth, d);

@@ -48,7 +48,9 @@ struct NarrowPhaseStats {
 struct PatchSet {
   std::vector<ContactPatch> patches;
   std::vector<std::uint32_t> contacts;       ///< indices into ContactSet::contacts, grouped by patch
-  std::vector<double> depthAlongNormal;      ///< per contact of ContactSet (same order): r_a + r_b - n . (x_b - x_a) [m]
+  /// Per contact of ContactSet (same order): how far the two spheres must move apart along the patch
+  /// normal to separate, sqrt(rsum^2 - |u_perp|^2) - u . n with u = x_b - x_a [m] (plane contacts: the depth)
+  std::vector<double> depthAlongNormal;
   std::vector<std::uint32_t> patchOfContact; ///< per contact of ContactSet: its patch
   NarrowPhaseStats stats;
 };

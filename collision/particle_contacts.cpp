@@ -7,12 +7,14 @@ namespace volpar {
 
 namespace {
 
-/// Contact between particles a and b (world positions, radii) if they touch.
-bool touch(const ParticleStore& p, ParticleId a, ParticleId b, ParticleContact& c) {
+/// Contact between particles a and b (world positions, radii) if they touch, or come within `margin` x
+/// (r_a + r_b) of touching (a speculative contact, negative depth).
+bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, ParticleContact& c) {
   const Vec3 d = p.position[b.index()] - p.position[a.index()];
   const double rsum = p.radius[a.index()] + p.radius[b.index()];
   const double dist2 = d.squaredNorm();
-  if (!(dist2 < rsum * rsum)) return false;
+  const double reach = rsum * (1.0 + margin);
+  if (!(dist2 < reach * reach)) return false;
   const double dist = std::sqrt(dist2);
   c.a = a;
   c.b = b;
@@ -139,8 +141,10 @@ void ContactFinder::forCells(const BodyGrid& g, const BodyState& s, const Aabb& 
 
 void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, BodyId a, BodyId b,
                              std::span<const Aabb> boxes, ContactSet& out) const {
-  const Aabb& boxA = boxes[a.index()];
-  const Aabb& boxB = boxes[b.index()];
+  // the boxes grown by the speculative reach
+  const double grow = margin_ * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius);
+  const Aabb boxA = boxes[a.index()].expanded(grow);
+  const Aabb boxB = boxes[b.index()].expanded(grow);
   const Aabb overlap{boxA.lo.cwiseMax(boxB.lo), boxA.hi.cwiseMin(boxB.hi)};
   if (!overlap.valid()) return;
   // iterate the body with fewer particles, look up the other's grid
@@ -156,8 +160,8 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
   forCells(gi, bodies.state[it.index()], overlap.expanded(gi.maxRadius), [&](ParticleId pi) {
     const Vec3& x = p.position[pi.index()];
     // (a hair wider than the largest sum of radii, so rounding in the frame change cannot drop a pair)
-    const double reach = (p.radius[pi.index()] + go.maxRadius) * (1.0 + 1e-9);
-    if (!Aabb::sphere(x, p.radius[pi.index()]).overlaps(boxes[other.index()])) return;
+    const double reach = (p.radius[pi.index()] + go.maxRadius) * (1.0 + margin_ + 1e-9);
+    if (!Aabb::sphere(x, p.radius[pi.index()]).overlaps(iterateA ? boxB : boxA)) return;
     // the particle's reach in the other grid's frame
     const Vec3 y = go.worldFrame ? x : Vec3(rtOther * (x - so.position));
     Eigen::Vector3i lo, hi;
@@ -173,7 +177,7 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
         for (std::size_t cell = row + static_cast<std::size_t>(lo.x()); cell <= row + static_cast<std::size_t>(hi.x()); ++cell)
           for (std::uint32_t k = go.cellStart[cell]; k < go.cellStart[cell + 1]; ++k) {
             const ParticleId q = go.items[k];
-            if (iterateA ? touch(p, pi, q, c) : touch(p, q, pi, c)) out.contacts.push_back(c);
+            if (iterateA ? touch(p, pi, q, margin_, c) : touch(p, q, pi, margin_, c)) out.contacts.push_back(c);
           }
       }
   });
@@ -189,9 +193,9 @@ void ContactFinder::selfContacts(const ParticleStore& p, BodyId id, ContactSet& 
   ParticleContact c;
   for (const ParticleId pi : g.items) {
     const Vec3& x = p.position[pi.index()];
-    forCells(g, BodyState{}, Aabb::sphere(x, p.radius[pi.index()] + g.maxRadius), [&](ParticleId q) {
+    forCells(g, BodyState{}, Aabb::sphere(x, (p.radius[pi.index()] + g.maxRadius) * (1.0 + margin_)), [&](ParticleId q) {
       if (!(pi < q) || connected(pi, q)) return;
-      if (touch(p, pi, q, c)) out.contacts.push_back(c);
+      if (touch(p, pi, q, margin_, c)) out.contacts.push_back(c);
     });
   }
   const auto count = static_cast<std::uint32_t>(out.contacts.size()) - first;
@@ -206,7 +210,7 @@ void ContactFinder::planeContacts(const ParticleStore& p, const BodyStore& bodie
   for (const ParticleId pi : bodies.info[id.index()].particles) {
     const double r = p.radius[pi.index()];
     const double height = pl.normal.dot(p.position[pi.index()]) - pl.offset;
-    if (!(height < r)) continue;
+    if (!(height < r * (1.0 + margin_))) continue;
     ParticleContact c;
     c.a = pi;
     c.plane = plane;

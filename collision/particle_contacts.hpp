@@ -3,7 +3,10 @@
 // body and a plane, and of non-neighbouring particles of one deformable body.
 //
 // Two particles touch when |x_b - x_a| < r_a + r_b, tested on world positions; a particle touches a plane
-// when its centre is less than its radius above it. Inside a candidate body pair the search goes through
+// when its centre is less than its radius above it. Pairs that are within a small margin of touching
+// (`setMargin`, a fraction of r_a + r_b) are reported too, as speculative contacts with a negative depth:
+// they keep a resting contact set stable (a stack rocking by a hair does not lose and regain contacts) and
+// let the solver stop an approaching pair exactly at contact. Inside a candidate body pair the search goes through
 // a uniform grid of each body's particles, built once in the body frame for rigid and static bodies and
 // every step in the world frame for deformable ones: only the grid cells inside the overlap of the two
 // bodies' boxes are visited, and each particle there looks up the few cells of the other body within its
@@ -28,7 +31,8 @@ struct ParticleContact {
   PlaneId plane;               ///< valid for a plane contact
   Vec3 point = Vec3::Zero();   ///< midpoint of the overlap on the centre line, world [m]
   Vec3 normal = Vec3::UnitZ(); ///< unit centre-line direction from a towards b (into the plane), world
-  double depth = 0.0;          ///< overlap along the centre line [m], > 0
+  double depth = 0.0;          ///< overlap along the centre line [m]; negative: the gap of a speculative contact
+  [[nodiscard]] bool touching() const { return depth > 0.0; }
 };
 
 /// The contacts of one body pair, body-plane pair or deformable body with itself: a range of
@@ -54,6 +58,9 @@ class ContactFinder {
  public:
   /// Registers a body (after its particles and connectors were added to the stores).
   void addBody(BodyId id, const ParticleStore& particles, const BodyStore& bodies);
+  /// Speculative reach as a fraction of r_a + r_b (0: touching pairs only).
+  void setMargin(double fraction) { margin_ = fraction; }
+  [[nodiscard]] double margin() const { return margin_; }
   /// Connector adjacency must be rebuilt (connectors added or broken).
   void connectorsChanged() { adjacencyDirty_ = true; }
 
@@ -100,6 +107,7 @@ class ContactFinder {
   std::vector<std::uint32_t> adjacencyStart_;  // CSR over particles [P + 1]
   std::vector<ParticleId> adjacency_;          // sorted per particle
   bool adjacencyDirty_ = true;
+  double margin_ = 0.0;
   std::vector<std::uint32_t> fill_;  // counting-sort scratch, reused
 };
 

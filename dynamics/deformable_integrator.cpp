@@ -10,13 +10,15 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
   const int substeps = std::max(1, in.substeps);
   const double h = in.dt / substeps;
   scratch.resize(p.size());
+  if (!in.shift.empty())
+    for (const ParticleId id : in.particles) p.position[id.index()] += in.shift[id.index()];
   for (int sub = 0; sub < substeps; ++sub) {
     // predict
     for (const ParticleId id : in.particles) {
       const std::size_t i = id.index();
       scratch[i] = p.position[i];
       if (p.invMass[i] == 0.0) continue;
-      p.velocity[i] += in.gravity * h;
+      if (!in.gravity.isZero()) p.velocity[i] += in.gravity * h;
       p.position[i] += p.velocity[i] * h;
     }
     // project each connector once (Gauss-Seidel, fixed order)

@@ -20,9 +20,12 @@ namespace volpar {
 struct DeformableStepInput {
   std::span<const ParticleId> particles;    ///< particles of deformable bodies
   std::span<const ConnectorId> connectors;  ///< unbroken connectors between them
-  Vec3 gravity = Vec3::Zero();              ///< [m/s^2]
+  Vec3 gravity = Vec3::Zero();              ///< [m/s^2], applied in every substep (0 when the caller already did)
   double dt = 0.0;                          ///< [s]
   int substeps = 1;
+  /// Position corrections [m] per particle (indexed like the particle store) that move particles without
+  /// giving them velocity (split impulses); empty for none.
+  std::span<const Vec3> shift;
 };
 
 /// Advances the listed particles by one step. `scratch` is resized once and reused.

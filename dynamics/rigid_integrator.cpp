@@ -26,9 +26,16 @@ void updateWorldInertia(BodyState& s) {
   s.invInertiaWorld = r * s.invInertiaLocal.asDiagonal() * r.transpose();
 }
 
-void integrateRigidPose(BodyState& s, double dt) {
+void integrateRigidPose(BodyState& s, double dt, const Vec3& pseudoLinear, const Vec3& pseudoAngular) {
   if (s.invMass == 0.0) return;
-  s.position += s.linearVelocity * dt;
+  s.position += (s.linearVelocity + pseudoLinear) * dt;
+  const double pseudoAngle = pseudoAngular.norm() * dt;
+  if (pseudoAngle > 0.0) {
+    // the correction's rotation, about the world axis of the pseudo angular velocity
+    const Vec3 wBody = s.orientation.conjugate() * s.angularVelocity;
+    s.orientation = (Quat(Eigen::AngleAxisd(pseudoAngle, pseudoAngular.normalized())) * s.orientation).normalized();
+    s.angularVelocity = s.orientation * wBody;  // the body keeps spinning about the same body axis
+  }
 
   // body-frame angular momentum L_b = I_b w_b (moments are 1 / invInertiaLocal)
   const Vec3& invI = s.invInertiaLocal;

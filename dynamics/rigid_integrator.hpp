@@ -20,8 +20,10 @@ namespace volpar {
 void integrateRigidVelocity(BodyState& s, const Vec3& gravity, double dt);
 
 /// Advances position and orientation by dt (torque free within the step) and updates
-/// invInertiaWorld and angularVelocity from the conserved angular momentum.
-void integrateRigidPose(BodyState& s, double dt);
+/// invInertiaWorld and angularVelocity from the conserved angular momentum. The pseudo velocities of
+/// position correction (split impulses) move the body too but change none of its velocities.
+void integrateRigidPose(BodyState& s, double dt, const Vec3& pseudoLinear = Vec3::Zero(),
+                        const Vec3& pseudoAngular = Vec3::Zero());
 
 /// invInertiaWorld = R diag(invInertiaLocal) R^T.
 void updateWorldInertia(BodyState& s);

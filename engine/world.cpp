@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "dynamics/contact_solver.hpp"
 #include "dynamics/deformable_integrator.hpp"
 #include "dynamics/mass_properties.hpp"
 #include "dynamics/rigid_integrator.hpp"
@@ -19,7 +20,14 @@ bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y())
 
 }  // namespace
 
-World::World(const WorldSettings& settings) : settings_(settings) { narrowPhase_.setSettings(settings.planes); }
+World::World(const WorldSettings& settings) : settings_(settings) {
+  narrowPhase_.setSettings(settings.planes);
+  SolverSettings solver = settings.solver;
+  solver.iterations = settings.solverIterations;
+  solver.positionIterations = settings.solverIterations;
+  contactFinder_.setMargin(settings_.contactMargin);
+  solver_.setSettings(solver);
+}
 
 NarrowPhaseInput World::narrowPhaseInput() const {
   NarrowPhaseInput in;
@@ -169,6 +177,10 @@ StepStatus World::step() {
   stats_.time.integrateVelocities = secondsSince(t);
 
   t = Clock::now();
+  solveContacts();
+  stats_.time.solver = secondsSince(t);
+
+  t = Clock::now();
   integratePositions();
   stats_.time.integratePositions = secondsSince(t);
 
@@ -228,28 +240,183 @@ void World::detectCollisions() {
   stats_.unvalidatedPatches = np.unvalidated;
   stats_.bodyPairs = bodyPairs_.size();
   stats_.planePairs = planePairs_.size();
-  stats_.contacts = contacts_.contacts.size();
+  stats_.contacts = 0;
   stats_.contactGroups = contacts_.groups.size();
   stats_.maxPenetration = 0.0;
-  for (const ParticleContact& c : contacts_.contacts) stats_.maxPenetration = std::max(stats_.maxPenetration, c.depth);
+  for (const ParticleContact& c : contacts_.contacts) {
+    if (!c.touching()) continue;
+    ++stats_.contacts;
+    stats_.maxPenetration = std::max(stats_.maxPenetration, c.depth);
+  }
   contactsStale_ = false;
 }
 
 void World::integrateVelocities() {
   for (const BodyId id : rigidBodies_) integrateRigidVelocity(bodies_.state[id.index()], settings_.gravity, settings_.dt);
+  for (const ParticleId p : deformableParticles_)
+    if (particles_.invMass[p.index()] > 0.0) particles_.velocity[p.index()] += settings_.gravity * settings_.dt;
+}
+
+std::uint32_t World::solverIndex(ParticleId p) {
+  const BodyId b = particles_.body[p.index()];
+  const BodyInfo& info = bodies_.info[b.index()];
+  if (info.kind == BodyKind::Static) return ContactPointInput::kFixed;
+  std::uint32_t& slot = info.kind == BodyKind::Rigid ? bodySolverIndex_[b.index()] : particleSolverIndex_[p.index()];
+  if (slot != ContactPointInput::kFixed) return slot;
+  slot = static_cast<std::uint32_t>(solverBodies_.size());
+  SolverBody sb;
+  if (info.kind == BodyKind::Rigid) {
+    const BodyState& s = bodies_.state[b.index()];
+    sb.v = s.linearVelocity;
+    sb.w = s.angularVelocity;
+    sb.invMass = s.invMass;
+    sb.invInertia = s.invInertiaWorld;
+    solverBodyOwner_.push_back(b);
+    solverParticleOwner_.emplace_back();
+  } else {
+    sb.v = particles_.velocity[p.index()];
+    sb.invMass = particles_.invMass[p.index()];
+    solverBodyOwner_.emplace_back();
+    solverParticleOwner_.push_back(p);
+  }
+  solverBodies_.push_back(sb);
+  return slot;
+}
+
+void World::buildContactPoints() {
+  contactPoints_.clear();
+  const ContactSet& cs = contacts_;
+  const PatchSet& ps = patches_;
+  auto combined = [&](ParticleId a, ParticleId b, PlaneId plane, double& friction, double& restitution) {
+    const Material& ma = materials_[bodies_.info[particles_.body[a.index()].index()].material.index()];
+    const MaterialId mbId = plane.valid() ? planes_[plane.index()].material
+                                          : bodies_.info[particles_.body[b.index()].index()].material;
+    const Material& mb = materials_[mbId.index()];
+    friction = std::sqrt(ma.friction * mb.friction);
+    restitution = std::max(ma.restitution, mb.restitution);
+  };
+  auto arm = [&](ParticleId p, const Vec3& point) -> Vec3 {
+    const BodyId b = particles_.body[p.index()];
+    return bodies_.info[b.index()].kind == BodyKind::Rigid ? Vec3(point - bodies_.state[b.index()].position) : Vec3::Zero();
+  };
+  auto addPoint = [&](const ParticleContact& c, const Vec3& normal, double depth) {
+    ContactPointInput in;
+    in.a = solverIndex(c.a);
+    in.b = c.b.valid() ? solverIndex(c.b) : ContactPointInput::kFixed;
+    if (in.a == ContactPointInput::kFixed && in.b == ContactPointInput::kFixed) return;
+    in.rA = arm(c.a, c.point);
+    in.rB = c.b.valid() ? arm(c.b, c.point) : Vec3::Zero();
+    in.normal = normal;
+    in.depth = depth;
+    const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
+    in.slop = settings_.slop * rsum;
+    combined(c.a, c.b, c.plane, in.friction, in.restitution);
+    in.key = (static_cast<std::uint64_t>(c.a.value) << 32) |
+             (c.b.valid() ? c.b.value : (0x80000000u | static_cast<std::uint32_t>(c.plane.value)));
+    contactPoints_.push_back(in);
+  };
+  for (const ContactPatch& patch : ps.patches) {
+    const std::uint32_t* idx = ps.contacts.data() + patch.first;
+    if (settings_.rawNormals) {
+      for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], cs.contacts[idx[k]].normal, cs.contacts[idx[k]].depth);
+      continue;
+    }
+    const bool rigidPair = bodies_.info[patch.a.index()].kind != BodyKind::Deformable &&
+                           (!patch.b.valid() || bodies_.info[patch.b.index()].kind != BodyKind::Deformable);
+    if (!rigidPair || patch.count <= 4) {
+      for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
+      continue;
+    }
+    // a rigid patch becomes a manifold of at most four points (Bullet's choice): the deepest, the one
+    // farthest from it, the one farthest from their line, and the one that adds most area on the far side
+    reduced_.clear();
+    auto pointOf = [&](std::uint32_t k) -> const Vec3& { return cs.contacts[idx[k]].point; };
+    std::uint32_t deepest = 0;
+    for (std::uint32_t k = 1; k < patch.count; ++k)
+      if (ps.depthAlongNormal[idx[k]] > ps.depthAlongNormal[idx[deepest]]) deepest = k;
+    reduced_.push_back(deepest);
+    auto best = [&](auto score) {
+      std::uint32_t arg = 0;
+      double top = -1.0;
+      for (std::uint32_t k = 0; k < patch.count; ++k) {
+        if (std::find(reduced_.begin(), reduced_.end(), k) != reduced_.end()) continue;
+        const double v = score(pointOf(k));
+        if (v > top) {
+          top = v;
+          arg = k;
+        }
+      }
+      return arg;
+    };
+    const Vec3 p0 = pointOf(deepest);
+    reduced_.push_back(best([&](const Vec3& x) { return (x - p0).squaredNorm(); }));
+    const Vec3 p1 = pointOf(reduced_[1]);
+    reduced_.push_back(best([&](const Vec3& x) { return (x - p0).cross(x - p1).squaredNorm(); }));
+    const Vec3 p2 = pointOf(reduced_[2]);
+    const Vec3 triNormal = (p1 - p0).cross(p2 - p0);
+    reduced_.push_back(best([&](const Vec3& x) {
+      // area added outside the triangle: the largest of the three triangles the point makes with an edge
+      const double a = (x - p0).cross(x - p1).dot(triNormal), b = (x - p1).cross(x - p2).dot(triNormal),
+                   c = (x - p2).cross(x - p0).dot(triNormal);
+      return std::max({-a, -b, -c});
+    }));
+    for (const std::uint32_t k : reduced_) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
+  }
+}
+
+void World::solveContacts() {
+  // solver bodies of this step: only those in contact
+  for (const BodyId b : solverBodyOwner_)
+    if (b.valid()) bodySolverIndex_[b.index()] = ContactPointInput::kFixed;
+  for (const ParticleId p : solverParticleOwner_)
+    if (p.valid()) particleSolverIndex_[p.index()] = ContactPointInput::kFixed;
+  solverBodies_.clear();
+  solverBodyOwner_.clear();
+  solverParticleOwner_.clear();
+  bodySolverIndex_.resize(bodies_.size(), ContactPointInput::kFixed);
+  particleSolverIndex_.resize(particles_.size(), ContactPointInput::kFixed);
+  buildContactPoints();
+  stats_.contactPoints = contactPoints_.size();
+  if (contactPoints_.empty()) return;
+  solver_.solve(solverBodies_, contactPoints_, settings_.dt);
+  stats_.warmStarted = solver_.warmStarted();
+  // velocities back to the bodies and particles
+  for (std::size_t i = 0; i < solverBodies_.size(); ++i) {
+    const SolverBody& sb = solverBodies_[i];
+    if (solverBodyOwner_[i].valid()) {
+      BodyState& s = bodies_.state[solverBodyOwner_[i].index()];
+      s.linearVelocity = sb.v;
+      s.angularVelocity = sb.w;
+    } else {
+      particles_.velocity[solverParticleOwner_[i].index()] = sb.v;
+    }
+  }
 }
 
 void World::integratePositions() {
+  const double dt = settings_.dt;
   for (const BodyId id : rigidBodies_) {
-    integrateRigidPose(bodies_.state[id.index()], settings_.dt);
+    const std::uint32_t k = id.index() < bodySolverIndex_.size() ? bodySolverIndex_[id.index()] : ContactPointInput::kFixed;
+    if (k != ContactPointInput::kFixed) integrateRigidPose(bodies_.state[id.index()], dt, solverBodies_[k].pv, solverBodies_[k].pw);
+    else integrateRigidPose(bodies_.state[id.index()], dt);
     updateRigidParticles(id);
   }
   DeformableStepInput in;
   in.particles = deformableParticles_;
   in.connectors = deformableConnectors_;
-  in.gravity = settings_.gravity;
-  in.dt = settings_.dt;
+  in.gravity = Vec3::Zero();  // applied in integrateVelocities, before the contact solver
+  in.dt = dt;
   in.substeps = settings_.substeps;
+  bool shifted = false;
+  for (std::size_t i = 0; i < solverBodies_.size(); ++i) {
+    if (!solverParticleOwner_[i].valid()) continue;
+    if (!shifted) {
+      particleShift_.assign(particles_.size(), Vec3::Zero());
+      shifted = true;
+    }
+    particleShift_[solverParticleOwner_[i].index()] = solverBodies_[i].pv * dt;
+  }
+  if (shifted) in.shift = particleShift_;
   integrateDeformables(particles_, connectors_, in, scratch_);
   updateDeformableBodyStates();
 }

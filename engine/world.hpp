@@ -109,6 +109,9 @@ class World {
 
  private:
   void integrateVelocities();
+  void solveContacts();
+  void buildContactPoints();
+  std::uint32_t solverIndex(ParticleId p);
   void integratePositions();
   void detectCollisions();
   void updateRigidParticles(BodyId id);
@@ -131,6 +134,15 @@ class World {
   ContactSet contacts_;
   NarrowPhase narrowPhase_;
   PatchSet patches_;
+  ContactSolver solver_;
+  std::vector<SolverBody> solverBodies_;
+  std::vector<ContactPointInput> contactPoints_;
+  std::vector<std::uint32_t> bodySolverIndex_;      // [B], kFixed when not in the solver this step
+  std::vector<std::uint32_t> particleSolverIndex_;  // [P], for particles of deformable bodies
+  std::vector<BodyId> solverBodyOwner_;             // per solver body: its rigid body (invalid: a particle)
+  std::vector<ParticleId> solverParticleOwner_;     // per solver body: its particle (invalid: a rigid body)
+  std::vector<Vec3> particleShift_;                 // [P] pseudo displacement of deformable particles
+  std::vector<std::uint32_t> reduced_;              // manifold reduction scratch
   bool contactsStale_ = true;
   double maxRadius_ = 0.0;
 

@@ -1,6 +1,7 @@
 #pragma once
 
 #include "collision/separating_plane.hpp"
+#include "dynamics/contact_solver.hpp"
 #include "engine/core/plane.hpp"
 #include "engine/core/types.hpp"
 
@@ -15,6 +16,14 @@ struct WorldSettings {
   /// How far the broadphase's fat boxes reach beyond the bodies [m]; 0 = the largest particle radius.
   double broadphaseMargin = 0.0;
   PlaneSettings planes;                      ///< the separating-plane narrow phase
+  SolverSettings solver;                     ///< the contact solver (solver.iterations: the scene's)
+  /// Use each particle pair's centre-line normal instead of its patch's separating plane (for comparison).
+  bool rawNormals = false;
+  /// Penetration left uncorrected, as a fraction of the sum of the two particles' radii [-].
+  double slop = 0.01;
+  /// Speculative contact reach, as a fraction of the sum of the two particles' radii [-]: pairs this close
+  /// to touching are contacts with a negative depth (gap) that the solver lets close but not overlap.
+  double contactMargin = 0.05;
 };
 
 }  // namespace volpar

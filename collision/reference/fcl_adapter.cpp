@@ -199,15 +199,20 @@ PrimitiveContact primitiveContact(const SourceShape& sa, const Vec3& pa, const Q
   if (!fcl::collide(&a, &b, req, res)) return rc;
   rc.hit = true;
   using K = SourceShape::Kind;
-  if (sa.kind == K::Sphere || sb.kind == K::Sphere) {  // closed form: trust collide()
-    const fcl::Contactd* c = &res.getContact(0);
-    for (std::size_t i = 1; i < res.numContacts(); ++i)
-      if (res.getContact(i).penetration_depth > c->penetration_depth) c = &res.getContact(i);
-    rc.depth = c->penetration_depth;
-    rc.normal = c->normal;
-    rc.normalValid = c->normal.norm() > 0.5;
+  const fcl::Contactd* deepest = &res.getContact(0);
+  for (std::size_t i = 1; i < res.numContacts(); ++i)
+    if (res.getContact(i).penetration_depth > deepest->penetration_depth) deepest = &res.getContact(i);
+  // closed forms (a sphere) and box-box (FCL's SAT, face normals exact) come from collide() itself
+  if (sa.kind == K::Sphere || sb.kind == K::Sphere || (sa.kind == K::Box && sb.kind == K::Box)) {
+    rc.depth = deepest->penetration_depth;
+    rc.normal = deepest->normal;
+    rc.normalValid = deepest->normal.norm() > 0.5;
     return rc;
   }
+  // libccd's EPA can fail an assertion (which aborts: libfcl is built with asserts) on barely touching
+  // shapes; such poses get no reference normal
+  const double scale = std::max(ga->aabb_radius, gb->aabb_radius);
+  if (!(deepest->penetration_depth > 1e-4 * scale)) return rc;
   const bool capsules = sa.kind == K::Capsule && sb.kind == K::Capsule;
   fcl::DistanceRequestd dreq(true, !capsules);
   fcl::DistanceResultd dres;
@@ -273,6 +278,9 @@ Comparison compareContacts(const FclReport& fcl, std::span<const BodyPair> pairs
   std::vector<SpherePair> ours;
   std::vector<PlaneTouch> ourPlanes;
   for (const ParticleContact& pc : contacts.contacts) {
+    // speculative contacts (clearly apart) are not touching pairs; near-zero ones go to the grazing band
+    const double scale = particles.radius[pc.a.index()] + (pc.b.valid() ? particles.radius[pc.b.index()] : 0.0);
+    if (pc.depth < -kGrazing * scale) continue;
     if (pc.plane.valid()) {
       const double r = particles.radius[pc.a.index()];
       ourPlanes.push_back({pc.a, pc.plane, r - pc.depth});

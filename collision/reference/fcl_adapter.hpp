@@ -85,9 +85,10 @@ struct Comparison {
 };
 
 /// FCL's contact between two primitives placed in the world (pose of each shape frame), following
-/// fcl-guide section 4: sphere pairs by collide() (closed form), capsule pairs by unsigned distance
-/// (closed form), every other pair by signed distance (GJK + EPA, the minimum translation). The normal
-/// points from a to b.
+/// fcl-guide section 4: pairs with a sphere by collide() (closed form), box pairs by collide() (SAT; exact
+/// on face contacts), capsule pairs by unsigned distance (closed form), every other pair by signed
+/// distance (GJK + EPA, the minimum translation), except barely touching ones (collide() depth under 1e-4 of
+/// the shapes' size), where libccd's EPA can abort and no normal is given. The normal points from a to b.
 struct PrimitiveContact {
   bool hit = false;          ///< the primitives overlap or touch
   bool normalValid = false;  ///< a normal could be determined

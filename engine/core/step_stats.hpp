@@ -14,6 +14,7 @@ struct StageTimes {
   double broadphase = 0.0;
   double particleContacts = 0.0;
   double narrowPhase = 0.0;
+  double solver = 0.0;
   double total = 0.0;
 
   StageTimes& operator+=(const StageTimes& o) {
@@ -22,6 +23,7 @@ struct StageTimes {
     broadphase += o.broadphase;
     particleContacts += o.particleContacts;
     narrowPhase += o.narrowPhase;
+    solver += o.solver;
     total += o.total;
     return *this;
   }
@@ -33,7 +35,8 @@ struct StepStats {
   std::size_t bodyPairs = 0;        ///< candidate body pairs from the broadphase
   std::size_t planePairs = 0;       ///< candidate body-plane pairs
   std::size_t proxyMoves = 0;       ///< broadphase proxies reinserted (left their fat boxes)
-  std::size_t contacts = 0;         ///< touching particle pairs (particle-particle and particle-plane)
+  std::size_t contacts = 0;         ///< touching particle pairs (particle-particle and particle-plane), not
+                                    ///< counting speculative ones
   std::size_t contactGroups = 0;    ///< body pairs, body-plane pairs and self-contacting bodies in contact
   double maxPenetration = 0.0;      ///< deepest particle overlap [m]
   std::size_t patches = 0;          ///< contact patches (one separating plane each)
@@ -42,6 +45,8 @@ struct StepStats {
   std::size_t lookAheads = 0;       ///< look-aheads for single-contact patches
   std::size_t unvalidatedPatches = 0;  ///< patches whose plane no candidate could validate
   std::size_t normalsRecomputed = 0;   ///< cached surface normals recomputed this step
+  std::size_t contactPoints = 0;       ///< solver contact points (patches reduced to at most 4 points)
+  std::size_t warmStarted = 0;         ///< of them, warm started from the previous step
 };
 
 }  // namespace volpar

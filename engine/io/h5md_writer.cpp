@@ -517,7 +517,7 @@ Status H5mdWriter::writeFrame(const World& world) {
     const Vec3 ang = world.angularMomentum();
     m.linearMomentum.append(H5T_NATIVE_DOUBLE, lin.data(), step, time);
     m.angularMomentum.append(H5T_NATIVE_DOUBLE, ang.data(), step, time);
-    const std::int64_t contactCount = static_cast<std::int64_t>(world.contacts().contacts.size());
+    const std::int64_t contactCount = static_cast<std::int64_t>(world.stats().contacts);
     const double deepest = world.stats().maxPenetration;
     m.contactCount.append(H5T_NATIVE_INT64, &contactCount, step, time);
     m.maxPenetration.append(H5T_NATIVE_DOUBLE, &deepest, step, time);
@@ -545,15 +545,18 @@ Status H5mdWriter::writeFrame(const World& world) {
 
 void H5mdWriter::writeContacts(const ContactSet& set) {
   Impl& m = *impl_;
-  const std::size_t n = set.contacts.size();
+  // touching contacts only (speculative ones are the solver's business)
+  std::size_t n = 0;
+  for (const ParticleContact& c : set.contacts) n += c.touching() ? 1 : 0;
   m.contactA.resize(n);
   m.contactB.resize(n);
   m.contactPlane.resize(n);
   m.contactPoint.resize(3 * n);
   m.contactNormal.resize(3 * n);
   m.contactDepth.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const ParticleContact& c = set.contacts[i];
+  std::size_t i = 0;
+  for (const ParticleContact& c : set.contacts) {
+    if (!c.touching()) continue;
     m.contactA[i] = static_cast<std::int32_t>(c.a.value);
     m.contactB[i] = c.b.valid() ? static_cast<std::int32_t>(c.b.value) : -1;
     m.contactPlane[i] = c.plane.valid() ? static_cast<std::int32_t>(c.plane.value) : -1;
@@ -562,6 +565,7 @@ void H5mdWriter::writeContacts(const ContactSet& set) {
       m.contactNormal[3 * i + static_cast<std::size_t>(k)] = c.normal[k];
     }
     m.contactDepth[i] = c.depth;
+    ++i;
   }
   ContactSeries& cs = m.contacts;
   const auto offset = static_cast<std::int64_t>(cs.particleA.rows());

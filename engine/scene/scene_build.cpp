@@ -102,6 +102,7 @@ Result<BuiltScene> buildScene(const SceneDesc& desc) {
   settings.gravity = desc.gravity;
   settings.solverIterations = desc.solverIterations;
   settings.substeps = desc.substeps;
+  settings.rawNormals = desc.rawNormals;
   BuiltScene built{World(settings), {}, {}};
   World& world = built.world;
 
@@ -128,6 +129,10 @@ Result<BuiltScene> buildScene(const SceneDesc& desc) {
           def.material = materialIds.at(b.material);
           def.position = b.position + Vec3(i * b.repeat.spacing.x(), j * b.repeat.spacing.y(), k * b.repeat.spacing.z());
           def.orientation = b.orientation;
+          const int copy = i + c[0] * (j + c[1] * k);
+          for (const auto& [axis, angle] : b.repeat.rotationStep)
+            def.orientation = Quat(Eigen::AngleAxisd(angle * copy, axis)) * def.orientation;
+          def.orientation.normalize();
           def.linearVelocity = b.velocity;
           def.angularVelocity = b.angularVelocity;
           def.connectors = b.connectors;

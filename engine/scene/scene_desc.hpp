@@ -55,6 +55,9 @@ using ShapeDesc = std::variant<BoxDesc, SphereDesc, CylinderDesc, CapsuleDesc, M
 struct RepeatDesc {
   std::array<int, 3> count{1, 1, 1};
   Vec3 spacing = Vec3::Zero();  ///< [m], world axes
+  /// Copy n (x fastest, then y, then z) is also turned by each of these rotations with its angle
+  /// multiplied by n, in order (about world axes), after the body's own orientation.
+  std::vector<std::pair<Vec3, double>> rotationStep;  ///< (unit axis, angle [rad])
 };
 
 struct BodyDesc {
@@ -93,6 +96,7 @@ struct SceneDesc {
   int substeps = 4;
   int outputEvery = 1;
   bool allowInitialOverlap = false;
+  bool rawNormals = false;  ///< solver uses centre-line normals instead of separating planes
   std::map<std::string, Material> materials;  ///< always holds "default"
   std::vector<PlaneDesc> planes;
   std::vector<BodyDesc> bodies;

@@ -194,6 +194,19 @@ std::string oneOf(const Ctx& ctx, const YAML::Node& n, const std::string& what, 
 // ---------------------------------------------------------------------------------------------
 // compound values
 
+/// An axis and angle: {axis: [x, y, z], angle: rad | angle_deg: deg}.
+std::pair<Vec3, double> axisAngle(const Ctx& ctx, const YAML::Node& n, const std::string& what) {
+  const MapReader m(ctx, n, what, {"axis", "angle", "angle_deg"});
+  const YAML::Node axisNode = m.require("axis");
+  const Vec3 axis = vec3(ctx, axisNode, "rotation axis");
+  if (!(axis.norm() > 1e-12)) ctx.fail(axisNode.Mark(), "expected a non-zero rotation axis, got a zero-length vector");
+  if (m.has("angle") == m.has("angle_deg"))
+    ctx.fail(m.mark(), "expected exactly one of 'angle' [rad] or 'angle_deg' [deg] in " + what);
+  const double angle = m.has("angle") ? number(ctx, m.get("angle"), "angle")
+                                      : number(ctx, m.get("angle_deg"), "angle_deg") * std::numbers::pi / 180.0;
+  return {axis.normalized(), angle};
+}
+
 Quat rotation(const Ctx& ctx, const YAML::Node& n) {
   const MapReader m(ctx, n, "orientation", {"axis", "angle", "angle_deg", "quaternion"});
   if (m.has("quaternion")) {
@@ -206,14 +219,8 @@ Quat rotation(const Ctx& ctx, const YAML::Node& n) {
     if (!(r.norm() > 1e-12)) ctx.fail(q.Mark(), "expected a non-zero quaternion [w, x, y, z]");
     return r.normalized();
   }
-  const YAML::Node axisNode = m.require("axis");
-  const Vec3 axis = vec3(ctx, axisNode, "rotation axis");
-  if (!(axis.norm() > 1e-12)) ctx.fail(axisNode.Mark(), "expected a non-zero rotation axis, got a zero-length vector");
-  if (m.has("angle") == m.has("angle_deg"))
-    ctx.fail(m.mark(), "expected exactly one of 'angle' [rad] or 'angle_deg' [deg] in orientation");
-  const double angle = m.has("angle") ? number(ctx, m.get("angle"), "angle")
-                                      : number(ctx, m.get("angle_deg"), "angle_deg") * std::numbers::pi / 180.0;
-  return Quat(Eigen::AngleAxisd(angle, axis.normalized()));
+  const auto [axis, angle] = axisAngle(ctx, n, "orientation");
+  return Quat(Eigen::AngleAxisd(angle, axis));
 }
 
 /// One rotation, or a list applied in order (each about the world axes).
@@ -366,7 +373,7 @@ ConnectorParams connectors(const Ctx& ctx, const YAML::Node& n, BodyKind kind) {
 }
 
 RepeatDesc repeat(const Ctx& ctx, const YAML::Node& n) {
-  const MapReader m(ctx, n, "repeat", {"count", "spacing"});
+  const MapReader m(ctx, n, "repeat", {"count", "spacing", "rotation_step"});
   RepeatDesc r;
   const YAML::Node c = m.require("count");
   if (!c.IsSequence() || c.size() != 3) ctx.fail(c.Mark(), "expected a list of 3 counts [nx, ny, nz], got " + describe(c));
@@ -377,6 +384,14 @@ RepeatDesc repeat(const Ctx& ctx, const YAML::Node& n) {
   }
   if (total > 10000000) ctx.fail(c.Mark(), "repeat would create " + std::to_string(total) + " bodies; expected at most 10000000");
   r.spacing = vec3(ctx, m.require("spacing"), "repeat spacing");
+  if (m.has("rotation_step")) {
+    const YAML::Node steps = m.get("rotation_step");
+    if (steps.IsSequence()) {
+      for (const auto& st : steps) r.rotationStep.push_back(axisAngle(ctx, st, "rotation_step"));
+    } else {
+      r.rotationStep.push_back(axisAngle(ctx, steps, "rotation_step"));
+    }
+  }
   return r;
 }
 
@@ -433,7 +448,8 @@ SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::p
   }
   if (m.has("gravity")) s.gravity = vec3(ctx, m.get("gravity"), "gravity");
   if (m.has("solver")) {
-    const MapReader sm(ctx, m.get("solver"), "solver", {"iterations", "substeps"});
+    const MapReader sm(ctx, m.get("solver"), "solver", {"iterations", "substeps", "raw_normals"});
+    if (sm.has("raw_normals")) s.rawNormals = boolean(ctx, sm.get("raw_normals"), "raw_normals");
     if (sm.has("iterations")) s.solverIterations = static_cast<int>(integer(ctx, sm.get("iterations"), "solver iterations", 1, 1000));
     if (sm.has("substeps")) s.substeps = static_cast<int>(integer(ctx, sm.get("substeps"), "substeps", 1, 1000));
   }
