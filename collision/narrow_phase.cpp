@@ -94,7 +94,9 @@ void NarrowPhase::makePatches(const NarrowPhaseInput& in, const ContactSet& set,
       const auto [lo, hi] = byA(a);
       for (const ParticleContact* cj = lo; cj != hi; ++cj) {
         const auto j = static_cast<std::uint32_t>(cj - c);
-        if (j != i && (plane || near(c[i].b, cj->b))) unite(parent_, i, j);
+        // neighbours on both sides, facing roughly the same way (so the floor of a slot and its walls,
+        // which a peg may touch or nearly touch at once, stay separate patches)
+        if (j != i && (plane || near(c[i].b, cj->b)) && c[i].normal.dot(cj->normal) > 0.2) unite(parent_, i, j);
       }
     };
     visit(c[i].a);
@@ -475,14 +477,10 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
     if (isPlane) {
       d = c.depth;  // the plane's normal is the contact's own
     } else {
-      // how far the pair must move apart along the normal for the spheres to separate:
-      // sqrt(rsum^2 - |u_perp|^2) - u . n with u = x_b - x_a (0 for spheres that just touch, also when one
-      // sits in the groove between others)
-      const Vec3 u = p.position[c.b.index()] - p.position[c.a.index()];
-      const double rs = p.radius[c.a.index()] + p.radius[c.b.index()];
-      const double along = patch.normal.dot(u);
-      const double perp2 = std::max(u.squaredNorm() - along * along, 0.0);
-      d = std::sqrt(std::max(rs * rs - perp2, 0.0)) - along;
+      // overlap of the two particles' extents along the normal, r_a + r_b - n . (x_b - x_a): the plane
+      // model's depth, in which a side's particle tops form a flat face (a particle resting in the groove
+      // between two others rests on their tops, and slides over a lattice without bumping)
+      d = p.radius[c.a.index()] + p.radius[c.b.index()] - patch.normal.dot(p.position[c.b.index()] - p.position[c.a.index()]);
     }
     out.depthAlongNormal[idx[i]] = d;
     patch.depth = std::max(patch.depth, d);

@@ -4,8 +4,10 @@
 // plane (separating_plane.hpp) with its normal, points and depths.
 //
 // Patches: two contacts of one group share a patch when their particles on side A are the same or
-// connector neighbours AND their particles on side B are (for planes: side A only), closed transitively.
-// So a peg touching both walls of a slot makes two patches even if the peg is one particle wide.
+// connector neighbours AND their particles on side B are (for planes: side A only) AND their centre lines
+// are within 78 degrees of each other (a lattice face tilts a contact's centre line by up to 35 degrees;
+// a wall and a floor differ by 90), closed transitively. So a peg touching both walls of a slot makes two
+// patches even if the peg is one particle wide, and its near-contacts with the slot's floor a third.
 
 #include <array>
 #include <cstdint>
@@ -48,8 +50,8 @@ struct NarrowPhaseStats {
 struct PatchSet {
   std::vector<ContactPatch> patches;
   std::vector<std::uint32_t> contacts;       ///< indices into ContactSet::contacts, grouped by patch
-  /// Per contact of ContactSet (same order): how far the two spheres must move apart along the patch
-  /// normal to separate, sqrt(rsum^2 - |u_perp|^2) - u . n with u = x_b - x_a [m] (plane contacts: the depth)
+  /// Per contact of ContactSet (same order): overlap of the two particles' extents along the patch normal,
+  /// r_a + r_b - n . (x_b - x_a) [m] (plane contacts: the depth). A side's particle tops form a flat face.
   std::vector<double> depthAlongNormal;
   std::vector<std::uint32_t> patchOfContact; ///< per contact of ContactSet: its patch
   NarrowPhaseStats stats;

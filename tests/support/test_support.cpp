@@ -26,8 +26,8 @@ Result<SceneDesc> sceneFromString(const std::string& text, const std::string& na
   return parseScene(text, sourcePath("scenes/" + name));
 }
 
-World worldFromString(const std::string& text) {
-  auto desc = sceneFromString(text);
+World worldFromString(const std::string& text, const std::string& name) {
+  auto desc = sceneFromString(text, name);
   if (!desc) {
     ADD_FAILURE() << desc.error().toString();
     return World(WorldSettings{});

@@ -20,8 +20,8 @@ std::string tempDir();
 /// Parses a scene given as text; `name` is the file name used in messages (resolved in scenes/).
 Result<SceneDesc> sceneFromString(const std::string& text, const std::string& name = "inline.yaml");
 
-/// Parses and builds a scene from text; fails the test on error.
-World worldFromString(const std::string& text);
+/// Parses and builds a scene from text (named like sceneFromString); fails the test on error.
+World worldFromString(const std::string& text, const std::string& name = "inline.yaml");
 
 struct CommandResult {
   int exitCode = -1;

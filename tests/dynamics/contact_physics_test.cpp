@@ -1,0 +1,221 @@
+// Contact response against textbook physics: bounce heights, friction distances, inclines, stacks,
+// smooth sliding over a particle floor (and the bumps without separating planes), energy, a settling pile,
+// and bit-identical reruns.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <numbers>
+
+#include "tests/support/test_support.hpp"
+
+namespace volpar {
+namespace {
+
+constexpr double kG = 9.81;
+
+World sceneWorld(const std::string& file, const std::string& replaceFrom = "", const std::string& replaceTo = "") {
+  std::ifstream in(test::sourcePath("scenes/" + file));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (!replaceFrom.empty()) {
+    const std::size_t at = text.find(replaceFrom);
+    EXPECT_NE(at, std::string::npos) << replaceFrom;
+    if (at != std::string::npos) text.replace(at, replaceFrom.size(), replaceTo);
+  }
+  return test::worldFromString(text, file);
+}
+
+void steps(World& w, int n) {
+  for (int i = 0; i < n; ++i) ASSERT_EQ(w.step(), StepStatus::Ok) << "step " << i;
+}
+
+TEST(ContactPhysics, BallBouncesToRestitutionSquaredTimesDropHeight) {
+  World w = sceneWorld("examples/bounce.yaml");
+  const BodyState& s = w.bodies().state[0];
+  // resting height: the lowest particle sphere just touching the floor
+  double lowest = 1e9;
+  for (std::size_t i = 0; i < w.particles().size(); ++i)
+    lowest = std::min(lowest, w.particles().position[i].z() - w.particles().radius[i]);
+  const double rest = s.position.z() - lowest;
+  const double drop = s.position.z() - rest;
+  double peak = 0.0;
+  bool bounced = false;
+  for (int i = 0; i < 720; ++i) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    if (!bounced && s.linearVelocity.z() > 0.0) bounced = true;
+    if (bounced) {
+      peak = std::max(peak, s.position.z());
+      if (s.linearVelocity.z() < 0.0) break;  // past the first peak
+    }
+  }
+  const double e = 0.5;
+  EXPECT_NEAR((peak - rest) / drop, e * e, 0.05 * e * e);
+}
+
+TEST(ContactPhysics, SlidingBoxStopsAfterVSquaredOverTwoMuG) {
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+materials:
+  m: {density: 700, restitution: 0.0, friction: 0.5}
+planes:
+  - {normal: [0, 0, 1], offset: 0, material: m}
+bodies:
+  - shape: {box: {size: [0.3, 0.3, 0.3]}}
+    fill: {radius: 0.05}
+    material: m
+    position: [0, 0, 0.15]
+    velocity: [2, 0, 0]
+)");
+  const double x0 = w.bodies().state[0].position.x();
+  steps(w, 360);
+  const double v = 2.0, mu = 0.5;
+  EXPECT_LT(w.bodies().state[0].linearVelocity.norm(), 1e-6);
+  EXPECT_NEAR(w.bodies().state[0].position.x() - x0, v * v / (2 * mu * kG), 0.05 * v * v / (2 * mu * kG));
+}
+
+/// A crate on an incline of `degrees` (friction 0.5): its displacement along the slope over time.
+std::vector<double> inclineRun(double degrees, double seconds) {
+  const double t = degrees * std::numbers::pi / 180.0;
+  const std::string scene = "dt: 0.004166666666666667\nsteps: 1\nmaterials:\n  wood: {density: 700, restitution: 0.0, friction: 0.5}\n"
+                            "planes:\n  - {normal: [0, " + std::to_string(-std::sin(t)) + ", " + std::to_string(std::cos(t)) +
+                            "], offset: 0, material: wood}\nbodies:\n  - shape: {box: {size: [0.3, 0.3, 0.3]}}\n"
+                            "    fill: {radius: 0.05}\n    material: wood\n    orientation: {axis: [1, 0, 0], angle_deg: " +
+                            std::to_string(degrees) + "}\n    position: [0, " + std::to_string(-0.1501 * std::sin(t)) + ", " +
+                            std::to_string(0.1501 * std::cos(t)) + "]\n";
+  World w = test::worldFromString(scene);
+  const Vec3 down(0, -std::cos(t), -std::sin(t));  // down the slope
+  const Vec3 x0 = w.bodies().state[0].position;
+  std::vector<double> s;
+  for (int i = 0; i < static_cast<int>(seconds * 240); ++i) {
+    EXPECT_EQ(w.step(), StepStatus::Ok);
+    s.push_back((w.bodies().state[0].position - x0).dot(down));
+  }
+  return s;
+}
+
+TEST(ContactPhysics, BoxOnInclineBelowFrictionAngleStays) {
+  const std::vector<double> s = inclineRun(20.0, 5.0);
+  double drift = 0.0;
+  for (const double x : s) drift = std::max(drift, std::abs(x));
+  EXPECT_LT(drift, 1e-3);
+}
+
+TEST(ContactPhysics, BoxOnInclineAboveFrictionAngleSlidesWithTheoreticalAcceleration) {
+  const double t = 35.0 * std::numbers::pi / 180.0;
+  const std::vector<double> s = inclineRun(35.0, 1.5);
+  // fit s = s0 + v0 t + a t^2 / 2 over the second half (the settling of the first contact is over)
+  const std::size_t n = s.size(), from = n / 2;
+  Eigen::MatrixXd a(n - from, 3);
+  Eigen::VectorXd b(n - from);
+  for (std::size_t i = from; i < n; ++i) {
+    const double ti = static_cast<double>(i + 1) / 240.0;
+    a.row(static_cast<Eigen::Index>(i - from)) << 1.0, ti, 0.5 * ti * ti;
+    b[static_cast<Eigen::Index>(i - from)] = s[i];
+  }
+  const Eigen::Vector3d fit = a.colPivHouseholderQr().solve(b);
+  const double expected = kG * (std::sin(t) - 0.5 * std::cos(t));
+  EXPECT_NEAR(fit[2], expected, 0.05 * expected);
+}
+
+TEST(ContactPhysics, TenCrateTowerStandsForTenSeconds) {
+  World w = sceneWorld("examples/tower.yaml");
+  ASSERT_EQ(w.bodies().size(), 10u);
+  const Vec3 top0 = w.bodies().state[9].position;
+  double drift = 0.0;
+  for (int i = 0; i < 2400; ++i) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    drift = std::max(drift, (w.bodies().state[9].position - top0).norm());
+  }
+  EXPECT_LT(drift, 0.01);
+  EXPECT_LT(w.energy().kinetic, 1e-3);
+}
+
+TEST(ContactPhysics, PyramidStands) {
+  World w = sceneWorld("examples/pyramid.yaml");
+  ASSERT_EQ(w.bodies().size(), 21u);
+  std::vector<Vec3> start;
+  for (const BodyState& s : w.bodies().state) start.push_back(s.position);
+  steps(w, 1200);
+  for (std::size_t b = 0; b < start.size(); ++b) {
+    const Vec3 d = w.bodies().state[b].position - start[b];
+    EXPECT_LT(std::abs(d.z()), 0.06) << w.bodies().info[b].name;  // settles a few centimetres, never falls
+    EXPECT_LT(d.head<2>().norm(), 0.1) << w.bodies().info[b].name;
+  }
+  EXPECT_LT(w.energy().kinetic, 1e-3);
+}
+
+/// Standard deviation of the sliding crate's vertical velocity while it slides over the particle floor.
+double verticalNoise(bool raw) {
+  World w = sceneWorld("examples/slide.yaml", "output: {every: 2}",
+                       raw ? "output: {every: 2}\nsolver: {raw_normals: true}" : "output: {every: 2}");
+  const BodyState& s = w.bodies().state[1];
+  std::vector<double> vz;
+  for (int i = 0; i < 360; ++i) {
+    EXPECT_EQ(w.step(), StepStatus::Ok);
+    if (i >= 24 && s.linearVelocity.x() > 0.2) vz.push_back(s.linearVelocity.z());  // landed, still sliding
+  }
+  EXPECT_GT(vz.size(), 20u);
+  double mean = 0.0, var = 0.0;
+  for (const double v : vz) mean += v / static_cast<double>(vz.size());
+  for (const double v : vz) var += (v - mean) * (v - mean) / static_cast<double>(vz.size());
+  return std::sqrt(var);
+}
+
+TEST(ContactPhysics, SeparatingPlanesSlideSmoothlyWhereCentreLinesBump) {
+  const double planes = verticalNoise(false);
+  const double raw = verticalNoise(true);
+  EXPECT_LT(planes, 1e-3);
+  EXPECT_GT(raw, 10.0 * planes);
+  EXPECT_GT(raw, 1e-3);
+  std::printf("vertical velocity noise: separating planes %.3g m/s, centre-line normals %.3g m/s\n", planes, raw);
+}
+
+TEST(ContactPhysics, RestingContactNeverGainsEnergy) {
+  World w = sceneWorld("examples/tower.yaml");
+  const double e0 = w.energy().total();
+  double previous = e0;
+  for (int i = 0; i < 1200; ++i) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    const double e = w.energy().total();
+    EXPECT_LE(e, e0 + 1e-9 * std::abs(e0)) << "step " << i;
+    previous = e;
+  }
+  EXPECT_LT(previous, e0);
+}
+
+TEST(ContactPhysics, PileSettlesInsideItsWalls) {
+  World w = sceneWorld("bench/pile-125.yaml");
+  ASSERT_EQ(w.bodies().size(), 125u);
+  double deepestLate = 0.0;
+  for (int i = 0; i < 2000; ++i) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    if (i >= 1800) deepestLate = std::max(deepestLate, w.stats().maxPenetration);
+  }
+  const double wall = 0.45 * 5 / 2 + 0.3;
+  for (const BodyState& s : w.bodies().state) {
+    EXPECT_LT(std::abs(s.position.x()), wall);
+    EXPECT_LT(std::abs(s.position.y()), wall);
+    EXPECT_GT(s.position.z(), 0.0);
+  }
+  EXPECT_LT(w.energy().kinetic, 0.05 * 125 * 2.7);  // well under 0.05 J per kg
+  EXPECT_LT(deepestLate, 0.1 * 0.05);               // under 10 % of a particle radius
+}
+
+TEST(ContactPhysics, SameSceneTwiceGivesBitIdenticalTrajectories) {
+  const std::string dir = test::tempDir();
+  for (const char* name : {"a.h5", "b.h5"}) {
+    const auto r = test::runCommand(test::volparBinary() + " run " + test::sourcePath("scenes/examples/pyramid.yaml") +
+                                    " --steps 400 -o " + dir + "/" + name);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+  }
+  std::ifstream a(dir + "/a.h5", std::ios::binary), b(dir + "/b.h5", std::ios::binary);
+  const std::string x((std::istreambuf_iterator<char>(a)), std::istreambuf_iterator<char>());
+  const std::string y((std::istreambuf_iterator<char>(b)), std::istreambuf_iterator<char>());
+  ASSERT_GT(x.size(), 10000u);
+  EXPECT_TRUE(x == y);
+}
+
+}  // namespace
+}  // namespace volpar
