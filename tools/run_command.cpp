@@ -99,6 +99,7 @@ int run(const RunArgs& args) {
         .field("broadphase", t.broadphase)
         .field("particle_contacts", t.particleContacts)
         .field("narrow_phase", t.narrowPhase)
+        .field("solver", t.solver)
         .end();
     j.end();
     std::cout << j.str() << std::endl;
@@ -109,9 +110,9 @@ int run(const RunArgs& args) {
                 s.interrupted ? ", interrupted" : "");
     std::printf("speed        %.1f steps/s (%.3f s stepping, %.3f s wall)\n", s.stepsPerSecond, s.stepSeconds,
                 s.wallSeconds);
-    std::printf("stages       integrate velocities %.3f s, integrate positions %.3f s, broadphase %.3f s, "
+    std::printf("stages       integrate velocities %.3f s, solver %.3f s, integrate positions %.3f s, broadphase %.3f s, "
                 "particle contacts %.3f s, narrow phase %.3f s\n",
-                t.integrateVelocities, t.integratePositions, t.broadphase, t.particleContacts, t.narrowPhase);
+                t.integrateVelocities, t.solver, t.integratePositions, t.broadphase, t.particleContacts, t.narrowPhase);
     std::printf("contacts     %zu at the end, deepest overlap during the run %.3g m\n", world.stats().contacts,
                 s.maxPenetration);
     std::printf("planes       %zu patches over the run, %zu unvalidated (%.3g %%), %zu look-aheads, %zu candidates\n",
