@@ -56,9 +56,7 @@ const char* planeCaseName(PlaneCase c) {
 Vec3 cachedWorldNormal(const ParticleStore& particles, const BodyStore& bodies, const NormalCache& normals, ParticleId p) {
   const std::int32_t k = particles.normalIndex[p.index()];
   if (k < 0) return Vec3::Zero();
-  const BodyId b = particles.body[p.index()];
-  if (bodies.info[b.index()].kind == BodyKind::Deformable) return normals[k];
-  return bodies.state[b.index()].orientation * normals[k];
+  return bodies.state[particles.body[p.index()].index()].orientation * normals[k];
 }
 
 Vec3 NarrowPhase::worldNormal(const NarrowPhaseInput& in, ParticleId p) const {
@@ -322,23 +320,18 @@ void NarrowPhase::addCandidates(const NarrowPhaseInput& in, const Side& a, const
     for (const ParticleId q : side.particles) {
       const std::int32_t k = in.particles->normalIndex[q.index()];
       if (k < 0) continue;
-      const BodyId body = in.particles->body[q.index()];
-      const bool world = in.bodies->info[body.index()].kind == BodyKind::Deformable;
-      const Quat& r = in.bodies->state[body.index()].orientation;
+      const Quat& r = in.bodies->state[in.particles->body[q.index()].index()].orientation;
       mean += (*in.normals)[k];
       for (const Vec3& f : in.normals->faces(k)) {
-        const Vec3 n = sign * (world ? f : Vec3(r * f));
+        const Vec3 n = sign * Vec3(r * f);
         const bool seen = std::any_of(candidates_.begin(), candidates_.end(), [&](const Candidate& other) {
           return other.source == source && (other.normal - n).squaredNorm() < 1e-12;
         });
         if (!seen) add(n, source);
       }
     }
-    if (!side.particles.empty()) {
-      const BodyId body = in.particles->body[side.particles[0].index()];
-      const bool world = in.bodies->info[body.index()].kind == BodyKind::Deformable;
-      add(sign * (world ? mean : Vec3(in.bodies->state[body.index()].orientation * mean)), source);
-    }
+    if (!side.particles.empty())
+      add(sign * Vec3(in.bodies->state[in.particles->body[side.particles[0].index()].index()].orientation * mean), source);
   };
   cachedFaces(a, 1.0, NormalSource::CachedA);
   cachedFaces(b, -1.0, NormalSource::CachedB);

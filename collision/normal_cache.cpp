@@ -28,6 +28,7 @@ std::size_t recomputeNormals(std::span<const ParticleId> ids, ParticleStore& p, 
                              const ContactFinder& adjacency, NormalCache& cache) {
   for (const ParticleId id : ids) {
     const std::size_t i = id.index();
+    // deformable bodies: from the current shape, turned into the body frame of their cached normals
     const bool world = bodies.info[p.body[i].index()].kind == BodyKind::Deformable;
     const std::vector<Vec3>& x = world ? p.position : p.local;
     Vec3 sum = Vec3::Zero();
@@ -41,6 +42,7 @@ std::size_t recomputeNormals(std::span<const ParticleId> ids, ParticleStore& p, 
     std::uint8_t surface = 0;
     Vec3 normal;
     estimateOne(x[i], sum, dist, count, surface, normal);
+    if (world) normal = bodies.state[p.body[i].index()].orientation.conjugate() * normal;
     if (surface) {
       p.flags[i] |= kParticleSurface;
       if (p.normalIndex[i] < 0) p.normalIndex[i] = cache.add(normal);

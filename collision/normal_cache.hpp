@@ -1,9 +1,10 @@
 #pragma once
 // Per-particle surface normals (DESIGN section 5). Each surface particle holds an index
-// (ParticleStore::normalIndex) into this list; interior particles hold -1. Normals of rigid and static
-// bodies are stored in the body's principal frame, so moving a body costs nothing; normals of deformable
-// bodies are stored in the world frame. A zero normal means the particle is on the surface but has no
-// preferred direction (a lone particle).
+// (ParticleStore::normalIndex) into this list; interior particles hold -1. Normals are stored in the body
+// frame, so moving a body costs nothing: the principal frame of rigid and static bodies, and for deformable
+// bodies the frame of their rest shape, which follows the body's best-fit rotation (shape matching); where
+// a deformable region strains, its normals are recomputed. A zero normal means the particle is on the
+// surface but has no preferred direction (a lone particle).
 
 #include <algorithm>
 #include <array>

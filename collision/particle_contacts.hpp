@@ -63,6 +63,10 @@ class ContactFinder {
   [[nodiscard]] double margin() const { return margin_; }
   /// Connector adjacency must be rebuilt (connectors added or broken).
   void connectorsChanged() { adjacencyDirty_ = true; }
+  /// Rebuilds the connector adjacency now (after connectors broke).
+  void refreshAdjacency(const ParticleStore& particles, const ConnectorStore& connectors) {
+    rebuildAdjacency(particles, connectors);
+  }
 
   /// Finds the contacts of the candidate pairs. `boxes` are the bodies' tight world boxes [B].
   void find(const ParticleStore& particles, const BodyStore& bodies, const ConnectorStore& connectors,

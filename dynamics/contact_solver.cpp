@@ -141,6 +141,11 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     }
   }
 
+  impulses_.resize(rows_.size());
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    const Row& r = rows_[i];
+    impulses_[i] = r.lambdaN * r.n + r.lambdaT1 * r.t1 + r.lambdaT2 * r.t2;
+  }
   // keep the impulses for the next step, sorted by key
   nextCache_.clear();
   for (const Row& r : rows_) {

@@ -67,6 +67,8 @@ class ContactSolver {
   /// Sum of the normal impulses applied in the last solve [N s].
   [[nodiscard]] double totalNormalImpulse() const { return totalNormalImpulse_; }
   [[nodiscard]] std::size_t warmStarted() const { return warmStarted_; }
+  /// The impulse [N s] each point of the last solve applied to its B side (A got the opposite), world.
+  [[nodiscard]] std::span<const Vec3> impulses() const { return impulses_; }
 
  private:
   struct Row {
@@ -88,6 +90,7 @@ class ContactSolver {
   SolverSettings settings_;
   std::vector<Row> rows_;
   std::vector<Cached> cache_, nextCache_;  // sorted by key
+  std::vector<Vec3> impulses_;
   double totalNormalImpulse_ = 0.0;
   std::size_t warmStarted_ = 0;
 };

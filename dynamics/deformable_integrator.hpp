@@ -17,6 +17,22 @@
 
 namespace volpar {
 
+/// A non-penetration constraint on a deformable particle `p`, held in every substep (contacts found at the
+/// end of the previous step). Against another particle it keeps normal . (x_p - x_other) >= separation
+/// (the separating plane's normal, pointing from the other side towards p), or with `centreLine` the
+/// centres at least `separation` apart along their current centre line; against a plane (`other` invalid)
+/// normal . x_p >= separation.
+struct DeformableContact {
+  ParticleId p;
+  ParticleId other;
+  Vec3 normal = Vec3::UnitZ();
+  double separation = 0.0;  ///< [m]
+  bool centreLine = false;
+  /// `other` is a particle of a rigid or static body: it stays where its body's pose puts it (the contact
+  /// solver already exchanged momentum with the body), only `p` is moved
+  bool otherFixed = false;
+};
+
 struct DeformableStepInput {
   std::span<const ParticleId> particles;    ///< particles of deformable bodies
   std::span<const ConnectorId> connectors;  ///< unbroken connectors between them
@@ -26,11 +42,26 @@ struct DeformableStepInput {
   /// Position corrections [m] per particle (indexed like the particle store) that move particles without
   /// giving them velocity (split impulses); empty for none.
   std::span<const Vec3> shift;
+  /// If not empty (sized like the connector store): the largest force [N] each listed connector carried in
+  /// any substep (rods: their constraint force; springs: k |stretch|).
+  std::span<double> forces;
+  /// Contacts kept in every substep: a contact's position correction is left out of the velocity, and the
+  /// velocity of its particle into it is removed.
+  std::span<const DeformableContact> contacts;
+  /// If not empty (sized like `contacts`): the impulse [N s] each contact with a fixed other particle gave
+  /// its deformable particle by stopping it; the rigid body of the other particle owes the opposite one.
+  std::span<Vec3> contactImpulses;
 };
 
-/// Advances the listed particles by one step. `scratch` is resized once and reused.
+/// Buffers kept between steps (sized once).
+struct DeformableScratch {
+  std::vector<Vec3> previous, push, pushNormal;
+  std::vector<std::int32_t> pushContact;
+};
+
+/// Advances the listed particles by one step.
 void integrateDeformables(ParticleStore& particles, const ConnectorStore& connectors, const DeformableStepInput& in,
-                          std::vector<Vec3>& scratch);
+                          DeformableScratch& scratch);
 
 /// Elastic energy sum 1/2 k (|xb - xa| - L0)^2 of the listed springs [J]. Rods store none.
 [[nodiscard]] double springEnergy(const ParticleStore& particles, const ConnectorStore& connectors,

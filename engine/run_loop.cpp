@@ -55,6 +55,12 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
       failed = true;
       break;
     }
+    if (writer && !world.breakEvents().empty()) {
+      if (auto ok = writer->writeBreakEvents(world); !ok) return ok.error();
+    }
+    summary.connectorsBroken += world.breakEvents().size();
+    summary.bodiesCreated += world.stats().bodiesCreated;
+    summary.normalsRecomputed += world.stats().normalsRecomputed;
     const bool last = i + 1 == options.steps;
     if (writer && (world.stepIndex() % every == 0 || last)) {
       if (auto ok = writer->writeFrame(world); !ok) return ok.error();

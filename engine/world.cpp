@@ -1,5 +1,6 @@
 #include "engine/world.hpp"
 
+#include <Eigen/SVD>
 #include <chrono>
 #include <cmath>
 
@@ -117,7 +118,8 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     info.particles.emplace_back(p);
     particles_.radius[p] = cloud.radii[i];
     particles_.mass[p] = masses[i];
-    particles_.invMass[p] = def.kind == BodyKind::Static ? 0.0 : 1.0 / masses[i];
+    const bool pinned = def.kind == BodyKind::Deformable && i < cloud.pinned.size() && cloud.pinned[i];
+    particles_.invMass[p] = def.kind == BodyKind::Static || pinned ? 0.0 : 1.0 / masses[i];
     particles_.body[p] = id;
     particles_.local[p] = toPrincipal * (cloud.positions[i] - mp.centre);
     if (cloud.surface[i]) {
@@ -125,8 +127,9 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
       const std::uint8_t features = i < cloud.features.size() ? cloud.features[i] : 0;
       if (features == 2) particles_.flags[p] |= kParticleEdge;
       if (features >= 3) particles_.flags[p] |= kParticleCorner;
-      // rigid and static: principal frame; deformable: world frame
-      const Quat toCache = def.kind == BodyKind::Deformable ? def.orientation : toPrincipal;
+      // in the body's principal frame (for deformable bodies: the frame of their rest shape, which follows the
+      // body's best-fit rotation)
+      const Quat toCache = toPrincipal;
       std::array<Vec3, 3> faces{};
       std::size_t nf = 0;
       if (i < cloud.featureNormals.size())
@@ -134,14 +137,17 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
       particles_.normalIndex[p] = normals_.add(toCache * cloud.normals[i], std::span<const Vec3>(faces.data(), nf));
     }
   }
+  bodyConnectors_.emplace_back();
   for (const auto& c : cloud.connectors) {
     const ParticleId a(first.index() + c[0]);
     const ParticleId b(first.index() + c[1]);
     const double rest = (cloud.positions[c[1]] - cloud.positions[c[0]]).norm();
     const ConnectorId cid = connectors_.add(a, b, rest, def.connectors);
+    bodyConnectors_.back().push_back(cid);
     if (def.kind == BodyKind::Deformable) deformableConnectors_.push_back(cid);
   }
   bodies_.add(state, std::move(info));
+  rodForces_.emplace_back();
   bodyBoxes_.emplace_back();
 
   if (def.kind == BodyKind::Deformable) {
@@ -149,14 +155,20 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     for (std::size_t i = 0; i < n; ++i) {
       const std::size_t p = first.index() + i;
       particles_.position[p] = def.position + def.orientation * cloud.positions[i];
-      particles_.velocity[p] =
-          def.linearVelocity + def.angularVelocity.cross(particles_.position[p] - state.position);
+      particles_.velocity[p] = particles_.invMass[p] == 0.0
+                                   ? Vec3::Zero()
+                                   : Vec3(def.linearVelocity + def.angularVelocity.cross(particles_.position[p] - state.position));
       deformableParticles_.emplace_back(p);
     }
     updateDeformableBodyState(id);
   } else {
     if (def.kind == BodyKind::Rigid) rigidBodies_.push_back(id);
     updateRigidParticles(id);
+    if (def.kind == BodyKind::Rigid && std::isfinite(def.connectors.breakLimit) && !bodyConnectors_[id.index()].empty()) {
+      rodForces_[id.index()] = std::make_unique<RodForces>();
+      rodForces_[id.index()]->build(bodies_.info[id.index()], particles_, connectors_, bodyConnectors_[id.index()]);
+      breakableRigid_.push_back(id);
+    }
   }
   for (std::size_t i = 0; i < n; ++i) maxRadius_ = std::max(maxRadius_, cloud.radii[i]);
   broadphase_.setMargin(settings_.broadphaseMargin > 0.0 ? settings_.broadphaseMargin : maxRadius_);
@@ -184,6 +196,10 @@ StepStatus World::step() {
   integratePositions();
   stats_.time.integratePositions = secondsSince(t);
 
+  t = Clock::now();
+  applyBreakage();
+  stats_.time.breakage = secondsSince(t);
+
   ++stepIndex_;
   const bool finiteNow = finiteState();
   if (finiteNow) detectCollisions();
@@ -207,6 +223,181 @@ void World::refreshContacts() {
   stats_.candidates = found.candidates;
   stats_.lookAheads = found.lookAheads;
   stats_.unvalidatedPatches = found.unvalidatedPatches;
+}
+
+void World::applyBreakage() {
+  breakEvents_.clear();
+  seeds_.clear();
+  bool anyBroken = false;
+  // rigid bodies: the rods' forces in the elastic lattice under this step's loads
+  for (std::size_t k = 0; k < breakableRigid_.size(); ++k) {
+    const BodyId id = breakableRigid_[k];
+    RodForces* rf = rodForces_[id.index()].get();
+    if (!rf || !bodies_.info[id.index()].alive) continue;
+    rf->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, rodForceScratch_);
+    bool broke = false;
+    const std::span<const ConnectorId> rods = rf->rods();
+    for (std::size_t r = 0; r < rods.size(); ++r) {
+      const std::size_t c = rods[r].index();
+      if (!(std::abs(rodForceScratch_[r]) > connectors_.breakLimit[c])) continue;
+      connectors_.broken[c] = 1;
+      breakEvents_.push_back({stepIndex_ + 1, rods[r], connectors_.a[c], connectors_.b[c], id, ConnectorKind::Rod, rodForceScratch_[r]});
+      seeds_.push_back(connectors_.a[c]);
+      seeds_.push_back(connectors_.b[c]);
+      broke = true;
+    }
+    if (!broke) continue;
+    anyBroken = true;
+    std::vector<std::uint32_t> component;
+    const std::size_t parts =
+        connectedComponents(bodies_.info[id.index()].particles, connectors_, bodyConnectors_[id.index()], component);
+    if (parts > 1) {
+      splitBody(id, component, parts);
+    } else {
+      std::vector<ConnectorId> intact;
+      for (const ConnectorId c : bodyConnectors_[id.index()])
+        if (!connectors_.broken[c.index()]) intact.push_back(c);
+      rodForces_[id.index()]->build(bodies_.info[id.index()], particles_, connectors_, intact);
+    }
+  }
+  // deformable bodies: springs past their strain limit, rods past their strength
+  for (const ConnectorId cid : deformableConnectors_) {
+    const std::size_t c = cid.index();
+    if (connectors_.broken[c] || !std::isfinite(connectors_.breakLimit[c])) continue;
+    double value;
+    if (connectors_.kind[c] == ConnectorKind::Spring) {
+      const double len = (particles_.position[connectors_.b[c].index()] - particles_.position[connectors_.a[c].index()]).norm();
+      value = std::abs(len / connectors_.restLength[c] - 1.0);
+    } else {
+      value = deformableForces_[c];
+    }
+    if (!(value > connectors_.breakLimit[c])) continue;
+    connectors_.broken[c] = 1;
+    anyBroken = true;
+    breakEvents_.push_back({stepIndex_ + 1, cid, connectors_.a[c], connectors_.b[c], particles_.body[connectors_.a[c].index()],
+                            connectors_.kind[c], value});
+    seeds_.push_back(connectors_.a[c]);
+    seeds_.push_back(connectors_.b[c]);
+  }
+  stats_.connectorsBroken = breakEvents_.size();
+  if (anyBroken) contactFinder_.refreshAdjacency(particles_, connectors_);
+  // deformable regions strained past the threshold
+  for (const ConnectorId cid : deformableConnectors_) {
+    const std::size_t c = cid.index();
+    if (connectors_.broken[c]) continue;
+    const double len = (particles_.position[connectors_.b[c].index()] - particles_.position[connectors_.a[c].index()]).norm();
+    if (std::abs(len / connectors_.restLength[c] - 1.0) <= settings_.normalStrainThreshold) continue;
+    seeds_.push_back(connectors_.a[c]);
+    seeds_.push_back(connectors_.b[c]);
+  }
+  if (!seeds_.empty()) recomputeNormalsAround(seeds_, 1);
+}
+
+void World::recomputeNormalsAround(std::span<const ParticleId> seeds, int rings) {
+  // the seeds and their neighbours within `rings` connectors, each once
+  ringScratch_.assign(seeds.begin(), seeds.end());
+  std::size_t frontierBegin = 0;
+  for (int r = 0; r < rings; ++r) {
+    const std::size_t frontierEnd = ringScratch_.size();
+    for (std::size_t i = frontierBegin; i < frontierEnd; ++i)
+      for (const ParticleId n : contactFinder_.neighbours(ringScratch_[i])) ringScratch_.push_back(n);
+    frontierBegin = frontierEnd;
+  }
+  std::sort(ringScratch_.begin(), ringScratch_.end());
+  ringScratch_.erase(std::unique(ringScratch_.begin(), ringScratch_.end()), ringScratch_.end());
+  recomputeNormals(ringScratch_);
+}
+
+void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component, std::size_t components) {
+  const BodyInfo parentInfo = bodies_.info[parentId.index()];  // copy: the store grows below
+  const BodyState parentState = bodies_.state[parentId.index()];
+  const Quat shapeOrientation = bodies_.shapeOrientation(parentId);
+  const Vec3 shapeOrigin = bodies_.shapeOrigin(parentId);
+  const std::vector<ConnectorId> parentConnectors = bodyConnectors_[parentId.index()];
+  for (std::size_t part = 0; part < components; ++part) {
+    std::vector<ParticleId> ids;
+    for (std::size_t i = 0; i < parentInfo.particles.size(); ++i)
+      if (component[i] == part) ids.push_back(parentInfo.particles[i]);
+    std::vector<Vec3> x;
+    std::vector<double> r, m;
+    for (const ParticleId q : ids) {
+      x.push_back(particles_.position[q.index()]);
+      r.push_back(particles_.radius[q.index()]);
+      m.push_back(particles_.mass[q.index()]);
+    }
+    // mass properties from the fragment's own particles, in the world
+    const MassProperties mp = computeMassProperties(x, r, m);
+    const PrincipalAxes axes = principalAxes(mp.inertia);
+    const BodyId id(bodies_.size());
+    BodyInfo info;
+    // "wall/17": the original body's name and the fragment's own body index
+    info.name = parentInfo.name.substr(0, parentInfo.name.find('/')) + "/" + std::to_string(id.value);
+    info.kind = BodyKind::Rigid;
+    info.material = parentInfo.material;
+    info.mass = mp.mass;
+    info.inertiaLocal = axes.moments;
+    // the fragment keeps its parent's shape frame
+    info.principalInShape = (shapeOrientation.conjugate() * axes.rotation).normalized();
+    info.comInShape = shapeOrientation.conjugate() * (mp.centre - shapeOrigin);
+    info.particles = ids;
+    info.createdStep = stepIndex_ + 1;
+    info.parent = parentId;
+    BodyState state;
+    state.position = mp.centre;
+    state.orientation = axes.rotation;
+    // velocity inherited from the parent's rigid motion: v + w x r
+    state.linearVelocity = parentState.linearVelocity + parentState.angularVelocity.cross(mp.centre - parentState.position);
+    state.angularVelocity = parentState.angularVelocity;
+    state.invMass = 1.0 / mp.mass;
+    state.invInertiaLocal = axes.moments.cwiseInverse();
+    updateWorldInertia(state);
+    const Quat toLocal = axes.rotation.conjugate();
+    for (const ParticleId q : ids) {
+      const std::size_t i = q.index();
+      particles_.body[i] = id;
+      particles_.local[i] = toLocal * (particles_.position[i] - mp.centre);
+      const std::int32_t k = particles_.normalIndex[i];
+      if (k >= 0) {
+        // the cached normal (and its faces) from the parent's frame to the fragment's
+        std::array<Vec3, 3> faces{};
+        const std::span<const Vec3> old = normals_.faces(k);
+        for (std::size_t f = 0; f < old.size(); ++f) faces[f] = toLocal * (parentState.orientation * old[f]);
+        particles_.normalIndex[i] = normals_.add(toLocal * (parentState.orientation * normals_[k]),
+                                                 std::span<const Vec3>(faces.data(), old.size()));
+      }
+    }
+    bodies_.add(state, std::move(info));
+    bodyBoxes_.emplace_back();
+    rodForces_.emplace_back();
+    bodyConnectors_.emplace_back();
+    std::vector<std::uint8_t> inPart(particles_.size(), 0);
+    for (const ParticleId q : ids) inPart[q.index()] = 1;
+    for (const ConnectorId c : parentConnectors)
+      if (inPart[connectors_.a[c.index()].index()] && inPart[connectors_.b[c.index()].index()]) bodyConnectors_.back().push_back(c);
+    rigidBodies_.push_back(id);
+    updateRigidParticles(id);
+    broadphase_.addBody(id, bodyBoxes_[id.index()], false);
+    contactFinder_.addBody(id, particles_, bodies_);
+    std::vector<ConnectorId> intact;
+    for (const ConnectorId c : bodyConnectors_.back())
+      if (!connectors_.broken[c.index()]) intact.push_back(c);
+    if (!intact.empty()) {
+      rodForces_.back() = std::make_unique<RodForces>();
+      rodForces_.back()->build(bodies_.info[id.index()], particles_, connectors_, intact);
+      breakableRigid_.push_back(id);
+    }
+    ++stats_.bodiesCreated;
+  }
+  // the parent is retired: it keeps its id and history but no particles
+  BodyInfo& retired = bodies_.info[parentId.index()];
+  retired.alive = false;
+  retired.retiredStep = stepIndex_ + 1;
+  retired.particles.clear();
+  bodies_.state[parentId.index()].invMass = 0.0;
+  broadphase_.removeBody(parentId);
+  rodForces_[parentId.index()].reset();
+  rigidBodies_.erase(std::find(rigidBodies_.begin(), rigidBodies_.end(), parentId));
+  contactsStale_ = true;
 }
 
 std::size_t World::recomputeNormals(std::span<const ParticleId> ids) {
@@ -285,6 +476,7 @@ std::uint32_t World::solverIndex(ParticleId p) {
 
 void World::buildContactPoints() {
   contactPoints_.clear();
+  pointParticles_.clear();
   const ContactSet& cs = contacts_;
   const PatchSet& ps = patches_;
   auto combined = [&](ParticleId a, ParticleId b, PlaneId plane, double& friction, double& restitution) {
@@ -314,15 +506,22 @@ void World::buildContactPoints() {
     in.key = (static_cast<std::uint64_t>(c.a.value) << 32) |
              (c.b.valid() ? c.b.value : (0x80000000u | static_cast<std::uint32_t>(c.plane.value)));
     contactPoints_.push_back(in);
+    pointParticles_.emplace_back(c.a, c.b);
   };
   for (const ContactPatch& patch : ps.patches) {
     const std::uint32_t* idx = ps.contacts.data() + patch.first;
-    if (settings_.rawNormals) {
+    // point masses of deformable bodies take each pair's centre line where the patch has no valid plane
+    const bool deformable = bodies_.info[patch.a.index()].kind == BodyKind::Deformable ||
+                            (patch.b.valid() && bodies_.info[patch.b.index()].kind == BodyKind::Deformable);
+    if (settings_.rawNormals || (deformable && !patch.validated && !patch.plane.valid())) {
       for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], cs.contacts[idx[k]].normal, cs.contacts[idx[k]].depth);
       continue;
     }
-    const bool rigidPair = bodies_.info[patch.a.index()].kind != BodyKind::Deformable &&
-                           (!patch.b.valid() || bodies_.info[patch.b.index()].kind != BodyKind::Deformable);
+    // breakable bodies keep every contact: the loads on their rods follow where the contacts are
+    auto reducible = [&](BodyId b) {
+      return bodies_.info[b.index()].kind != BodyKind::Deformable && !rodForces_[b.index()];
+    };
+    const bool rigidPair = reducible(patch.a) && (!patch.b.valid() || reducible(patch.b));
     if (!rigidPair || patch.count <= 4) {
       for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
       continue;
@@ -377,9 +576,23 @@ void World::solveContacts() {
   particleSolverIndex_.resize(particles_.size(), ContactPointInput::kFixed);
   buildContactPoints();
   stats_.contactPoints = contactPoints_.size();
+  // loads on the particles of breakable bodies: gravity, and below the contact impulses over the step
+  if (!breakableRigid_.empty()) {
+    loads_.resize(particles_.size());
+    for (const BodyId b : breakableRigid_)
+      for (const ParticleId q : bodies_.info[b.index()].particles) loads_[q.index()] = particles_.mass[q.index()] * settings_.gravity;
+  }
   if (contactPoints_.empty()) return;
   solver_.solve(solverBodies_, contactPoints_, settings_.dt);
   stats_.warmStarted = solver_.warmStarted();
+  if (!breakableRigid_.empty()) {
+    const std::span<const Vec3> impulses = solver_.impulses();
+    for (std::size_t i = 0; i < impulses.size(); ++i) {
+      const auto [pa, pb] = pointParticles_[i];
+      if (rodForces_[particles_.body[pa.index()].index()]) loads_[pa.index()] -= impulses[i] / settings_.dt;
+      if (pb.valid() && rodForces_[particles_.body[pb.index()].index()]) loads_[pb.index()] += impulses[i] / settings_.dt;
+    }
+  }
   // velocities back to the bodies and particles
   for (std::size_t i = 0; i < solverBodies_.size(); ++i) {
     const SolverBody& sb = solverBodies_[i];
@@ -404,7 +617,12 @@ void World::integratePositions() {
   DeformableStepInput in;
   in.particles = deformableParticles_;
   in.connectors = deformableConnectors_;
-  in.gravity = Vec3::Zero();  // applied in integrateVelocities, before the contact solver
+  // gravity went into the velocities before the contact solver (which must see it); the substeps take it
+  // back out and apply it a substep at a time, so a hanging or resting body sees its weight in every
+  // substep instead of one kick per step
+  in.gravity = settings_.gravity;
+  for (const ParticleId p : deformableParticles_)
+    if (particles_.invMass[p.index()] > 0.0) particles_.velocity[p.index()] -= settings_.gravity * dt;
   in.dt = dt;
   in.substeps = settings_.substeps;
   bool shifted = false;
@@ -417,7 +635,52 @@ void World::integratePositions() {
     particleShift_[solverParticleOwner_[i].index()] = solverBodies_[i].pv * dt;
   }
   if (shifted) in.shift = particleShift_;
+  // the contacts of deformable particles hold in every substep, on the patch's plane (or, where the patch
+  // could not validate a plane, such as cloth wrapped round a ball, on each pair's centre line), as in the
+  // contact solver
+  deformableContacts_.clear();
+  for (const ContactPatch& patch : patches_.patches) {
+    const bool aDef = bodies_.info[patch.a.index()].kind == BodyKind::Deformable;
+    const bool bDef = patch.b.valid() && bodies_.info[patch.b.index()].kind == BodyKind::Deformable;
+    if (!aDef && !bDef) continue;
+    for (std::uint32_t k = patch.first; k < patch.first + patch.count; ++k) {
+      const ParticleContact& c = contacts_.contacts[patches_.contacts[k]];
+      const double ra = particles_.radius[c.a.index()];
+      if (patch.plane.valid()) {
+        const Plane& pl = planes_[patch.plane.index()];
+        deformableContacts_.push_back({c.a, ParticleId{}, pl.normal, pl.offset + ra * (1.0 - settings_.slop)});
+        continue;
+      }
+      const double sep = (ra + particles_.radius[c.b.index()]) * (1.0 - settings_.slop);
+      // written for the deformable particle (the normal points from A to B)
+      const bool line = !patch.validated;
+      if (aDef) deformableContacts_.push_back({c.a, c.b, -patch.normal, sep, line, !bDef});
+      else deformableContacts_.push_back({c.b, c.a, patch.normal, sep, line, true});
+    }
+  }
+  in.contacts = deformableContacts_;
+  deformableContactImpulses_.resize(deformableContacts_.size());
+  in.contactImpulses = deformableContactImpulses_;
+  deformableForces_.resize(connectors_.size(), 0.0);
+  in.forces = deformableForces_;
   integrateDeformables(particles_, connectors_, in, scratch_);
+  // what stopped deformable particles against rigid bodies in the substeps pushes those bodies back
+  // (momentum is conserved; the bodies' new velocities act from the next step)
+  touchedRigid_.clear();
+  for (std::size_t k = 0; k < deformableContacts_.size(); ++k) {
+    const DeformableContact& ct = deformableContacts_[k];
+    const Vec3& j = deformableContactImpulses_[k];
+    if (!ct.other.valid() || j.isZero()) continue;
+    const BodyId b = particles_.body[ct.other.index()];
+    BodyState& s = bodies_.state[b.index()];
+    if (bodies_.info[b.index()].kind != BodyKind::Rigid || s.invMass == 0.0) continue;
+    s.linearVelocity -= s.invMass * j;
+    s.angularVelocity -= s.invInertiaWorld * (particles_.position[ct.other.index()] - s.position).cross(j);
+    touchedRigid_.push_back(b);
+  }
+  std::sort(touchedRigid_.begin(), touchedRigid_.end());
+  touchedRigid_.erase(std::unique(touchedRigid_.begin(), touchedRigid_.end()), touchedRigid_.end());
+  for (const BodyId b : touchedRigid_) updateRigidParticles(b);
   updateDeformableBodyStates();
 }
 
@@ -439,35 +702,41 @@ void World::updateDeformableBodyStates() {
 }
 
 void World::updateDeformableBodyState(BodyId id) {
-  // centre of mass, its velocity, and the angular velocity I^-1 L about it
-  {
-    BodyState& s = bodies_.state[id.index()];
-    const BodyInfo& info = bodies_.info[id.index()];
-    Vec3 x = Vec3::Zero(), v = Vec3::Zero();
-    for (const ParticleId p : info.particles) {
-      x += particles_.mass[p.index()] * particles_.position[p.index()];
-      v += particles_.mass[p.index()] * particles_.velocity[p.index()];
-    }
-    x /= info.mass;
-    v /= info.mass;
-    Mat3 inertia = Mat3::Zero();
-    Vec3 l = Vec3::Zero();
-    for (const ParticleId p : info.particles) {
-      const std::size_t i = p.index();
-      const Vec3 d = particles_.position[i] - x;
-      const double m = particles_.mass[i];
-      const double own = 0.4 * m * particles_.radius[i] * particles_.radius[i];
-      inertia += (own + m * d.squaredNorm()) * Mat3::Identity() - m * d * d.transpose();
-      l += m * d.cross(particles_.velocity[i] - v);
-    }
-    s.position = x;
-    s.linearVelocity = v;
-    s.angularVelocity = inertia.ldlt().solve(l);
-    Aabb box;
-    for (const ParticleId p : info.particles)
-      box.extend(Aabb::sphere(particles_.position[p.index()], particles_.radius[p.index()]));
-    bodyBoxes_[id.index()] = box;
+  // centre of mass, its velocity, the angular velocity I^-1 L about it, and the best-fit rotation of the
+  // rest shape (shape matching: the rotation of the polar decomposition of sum m (x - c) q^T, with q the
+  // rest offsets), which carries the body's cached normals
+  BodyState& s = bodies_.state[id.index()];
+  const BodyInfo& info = bodies_.info[id.index()];
+  Vec3 x = Vec3::Zero(), v = Vec3::Zero();
+  for (const ParticleId p : info.particles) {
+    x += particles_.mass[p.index()] * particles_.position[p.index()];
+    v += particles_.mass[p.index()] * particles_.velocity[p.index()];
   }
+  x /= info.mass;
+  v /= info.mass;
+  Mat3 inertia = Mat3::Zero();
+  Mat3 apq = Mat3::Zero();
+  Vec3 l = Vec3::Zero();
+  Aabb box;
+  for (const ParticleId p : info.particles) {
+    const std::size_t i = p.index();
+    const Vec3 d = particles_.position[i] - x;
+    const double m = particles_.mass[i];
+    const double own = 0.4 * m * particles_.radius[i] * particles_.radius[i];
+    inertia += (own + m * d.squaredNorm()) * Mat3::Identity() - m * d * d.transpose();
+    apq += m * d * particles_.local[i].transpose();
+    l += m * d.cross(particles_.velocity[i] - v);
+    box.extend(Aabb::sphere(particles_.position[i], particles_.radius[i]));
+  }
+  s.position = x;
+  s.linearVelocity = v;
+  s.angularVelocity = inertia.ldlt().solve(l);
+  const Eigen::JacobiSVD<Mat3> svd(apq, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Mat3 u = svd.matrixU();
+  if ((u * svd.matrixV().transpose()).determinant() < 0.0) u.col(2) = -u.col(2);
+  const Mat3 r = u * svd.matrixV().transpose();
+  if (r.allFinite() && svd.singularValues()(1) > 0.0) s.orientation = Quat(r).normalized();
+  bodyBoxes_[id.index()] = box;
 }
 
 void World::syncParticles() {
@@ -489,20 +758,14 @@ bool World::finiteState() const {
   return true;
 }
 
-Vec3 World::particleNormal(ParticleId id) const {
-  const std::int32_t k = particles_.normalIndex[id.index()];
-  if (k < 0) return Vec3::Zero();
-  const BodyId b = particles_.body[id.index()];
-  if (bodies_.info[b.index()].kind == BodyKind::Deformable) return normals_[k];
-  return bodies_.state[b.index()].orientation * normals_[k];
-}
+Vec3 World::particleNormal(ParticleId id) const { return cachedWorldNormal(particles_, bodies_, normals_, id); }
 
 EnergyReport World::energy() const {
   EnergyReport e;
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const BodyState& s = bodies_.state[b];
     const BodyInfo& info = bodies_.info[b];
-    if (info.kind == BodyKind::Static) continue;
+    if (info.kind == BodyKind::Static || !info.alive) continue;
     if (info.kind == BodyKind::Rigid) {
       e.kinetic += 0.5 * info.mass * s.linearVelocity.squaredNorm() + rotationalEnergy(s, info.inertiaLocal);
       e.potential -= info.mass * settings_.gravity.dot(s.position);
@@ -522,7 +785,7 @@ Vec3 World::linearMomentum() const {
   Vec3 p = Vec3::Zero();
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const BodyInfo& info = bodies_.info[b];
-    if (info.kind == BodyKind::Static) continue;
+    if (info.kind == BodyKind::Static || !info.alive) continue;
     p += info.mass * bodies_.state[b].linearVelocity;
   }
   return p;
@@ -533,6 +796,7 @@ Vec3 World::angularMomentum() const {
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const BodyInfo& info = bodies_.info[b];
     const BodyState& s = bodies_.state[b];
+    if (!info.alive) continue;
     if (info.kind == BodyKind::Rigid) {
       l += info.mass * s.position.cross(s.linearVelocity) + volpar::angularMomentum(s, info.inertiaLocal);
     } else if (info.kind == BodyKind::Deformable) {

@@ -11,6 +11,7 @@
 // nothing once the world is built (buffers keep their capacity), and never writes files: a Runner
 // watches the world and writes trajectory frames.
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -19,6 +20,8 @@
 #include "collision/narrow_phase.hpp"
 #include "collision/normal_cache.hpp"
 #include "collision/particle_contacts.hpp"
+#include "dynamics/breakage.hpp"
+#include "dynamics/deformable_integrator.hpp"
 #include "engine/builders/particle_cloud.hpp"
 #include "engine/core/body_store.hpp"
 #include "engine/core/connector_store.hpp"
@@ -43,6 +46,16 @@ struct BodyDef {
   std::optional<double> particleMass;      ///< [kg] per particle; default density x particle volume
   std::optional<double> totalMass;         ///< [kg] spread evenly over the particles
   SourceShape source;                      ///< the primitive the cloud was filled from, if any
+};
+
+/// A connector that broke.
+struct BreakEvent {
+  std::int64_t step = 0;   ///< the step in which it broke (1 = the first)
+  ConnectorId connector;
+  ParticleId a, b;
+  BodyId body;             ///< the body it belonged to
+  ConnectorKind kind = ConnectorKind::Rod;
+  double value = 0.0;      ///< rods: the force it carried [N]; springs: its strain [-]
 };
 
 /// Energies of the whole world [J].
@@ -91,6 +104,10 @@ class World {
   /// Recomputes the cached normals of exactly these particles from their connector neighbourhood
   /// (recomputeNormals in collision/normal_cache.hpp); counted in stats().normalsRecomputed.
   std::size_t recomputeNormals(std::span<const ParticleId> ids);
+  /// Connectors that broke in the last step.
+  [[nodiscard]] const std::vector<BreakEvent>& breakEvents() const { return breakEvents_; }
+  /// The connectors of a body (broken ones included).
+  [[nodiscard]] std::span<const ConnectorId> bodyConnectors(BodyId id) const { return bodyConnectors_[id.index()]; }
   [[nodiscard]] std::int64_t stepIndex() const { return stepIndex_; }
 
   /// World-frame outward normal of a surface particle (zero for interior particles).
@@ -113,6 +130,9 @@ class World {
   void buildContactPoints();
   std::uint32_t solverIndex(ParticleId p);
   void integratePositions();
+  void applyBreakage();
+  void splitBody(BodyId parent, std::span<const std::uint32_t> component, std::size_t components);
+  void recomputeNormalsAround(std::span<const ParticleId> seeds, int rings);
   void detectCollisions();
   void updateRigidParticles(BodyId id);
   [[nodiscard]] bool finiteState() const;
@@ -142,7 +162,21 @@ class World {
   std::vector<BodyId> solverBodyOwner_;             // per solver body: its rigid body (invalid: a particle)
   std::vector<ParticleId> solverParticleOwner_;     // per solver body: its particle (invalid: a rigid body)
   std::vector<Vec3> particleShift_;                 // [P] pseudo displacement of deformable particles
+  std::vector<DeformableContact> deformableContacts_;
   std::vector<std::uint32_t> reduced_;              // manifold reduction scratch
+  std::vector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles
+
+  // breakage
+  std::vector<std::vector<ConnectorId>> bodyConnectors_;    // [B]
+  std::vector<std::unique_ptr<RodForces>> rodForces_;       // [B], for rigid bodies with breakable rods
+  std::vector<BodyId> breakableRigid_;
+  std::vector<Vec3> loads_;                                 // [P] loads on particles of breakable bodies [N]
+  std::vector<double> rodForceScratch_;
+  std::vector<double> deformableForces_;                    // [C] XPBD connector forces [N]
+  std::vector<BreakEvent> breakEvents_;
+  std::vector<Vec3> deformableContactImpulses_;
+  std::vector<BodyId> touchedRigid_;
+  std::vector<ParticleId> seeds_, ringScratch_;
   bool contactsStale_ = true;
   double maxRadius_ = 0.0;
 
@@ -153,7 +187,7 @@ class World {
   std::vector<ConnectorId> deformableConnectors_;
 
   // scratch reused across steps (no allocation inside step())
-  std::vector<Vec3> scratch_;
+  DeformableScratch scratch_;
 
   std::int64_t stepIndex_ = 0;
   StepStats stats_;

@@ -26,6 +26,8 @@ struct WorldSettings {
   /// covers a particle riding over the hollow between four others of a lattice of touching particles
   /// (sqrt(1 + 1/2) = 1.2247), so a face sliding over a face never loses its contacts.
   double contactMargin = 0.25;
+  /// Strain of a deformable body's connector [-] beyond which the normals around it are recomputed.
+  double normalStrainThreshold = 0.05;
 };
 
 }  // namespace volpar

@@ -83,6 +83,9 @@ int run(const RunArgs& args) {
         .field("energy_end", s.energyEnd.total())
         .field("energy_drift", drift)
         .field("contacts", world.stats().contacts)
+        .field("connectors_broken", s.connectorsBroken)
+        .field("bodies_created", s.bodiesCreated)
+        .field("normals_recomputed", s.normalsRecomputed)
         .field("max_penetration", s.maxPenetration)
         .field("interrupted", s.interrupted)
         .field("output", s.output);
@@ -100,6 +103,7 @@ int run(const RunArgs& args) {
         .field("particle_contacts", t.particleContacts)
         .field("narrow_phase", t.narrowPhase)
         .field("solver", t.solver)
+        .field("breakage", t.breakage)
         .end();
     j.end();
     std::cout << j.str() << std::endl;
@@ -115,6 +119,9 @@ int run(const RunArgs& args) {
                 t.integrateVelocities, t.solver, t.integratePositions, t.broadphase, t.particleContacts, t.narrowPhase);
     std::printf("contacts     %zu at the end, deepest overlap during the run %.3g m\n", world.stats().contacts,
                 s.maxPenetration);
+    if (s.connectorsBroken > 0 || s.normalsRecomputed > 0)
+      std::printf("breakage     %zu connectors broke, %zu fragments made, %zu normals recomputed (%.3f s)\n",
+                  s.connectorsBroken, s.bodiesCreated, s.normalsRecomputed, t.breakage);
     std::printf("planes       %zu patches over the run, %zu unvalidated (%.3g %%), %zu look-aheads, %zu candidates\n",
                 s.patches, s.unvalidatedPatches, s.patches ? 100.0 * static_cast<double>(s.unvalidatedPatches) / static_cast<double>(s.patches) : 0.0,
                 s.lookAheads, s.candidates);

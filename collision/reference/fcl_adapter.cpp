@@ -113,6 +113,8 @@ FclReport FclWorldReference::collide(const ParticleStore& p, const BodyStore& b,
     fcl::CollisionResultd res;
     if (!fcl::collide(o1, o2, req, res)) return false;
     const BodyId x(tag(o1)), y(tag(o2));
+    // bodies that broke apart have no particles any more
+    if (!d->bodies->info[x.index()].alive || !d->bodies->info[y.index()].alive) return false;
     const bool bothStatic = d->bodies->info[x.index()].kind == BodyKind::Static &&
                             d->bodies->info[y.index()].kind == BodyKind::Static;
     if (!bothStatic) d->out->push_back(x < y ? BodyPair{x, y} : BodyPair{y, x});

@@ -20,6 +20,7 @@ struct ParticleCloud {
   /// The exact normals of those features (the first min(features, 3) entries are set), shape frame, [P]
   std::vector<std::array<Vec3, 3>> featureNormals;
   std::vector<std::array<std::uint32_t, 2>> connectors;  ///< joined particle pairs (i < j), ascending
+  std::vector<std::uint8_t> pinned;  ///< 1 for particles held fixed in space (deformable bodies), [P] or empty
   double spacing = 0.0;           ///< lattice spacing [m]; 0 for explicit particle lists
 
   [[nodiscard]] std::size_t size() const { return positions.size(); }

@@ -43,8 +43,12 @@ struct BodyInfo {
   Vec3 inertiaLocal = Vec3::Zero();            ///< principal moments about the centre of mass [kg m^2]
   Quat principalInShape = Quat::Identity();    ///< rotation from principal-frame to shape-frame coordinates
   Vec3 comInShape = Vec3::Zero();              ///< centre of mass in shape-frame coordinates [m]
-  std::vector<ParticleId> particles;           ///< the body's particles, ascending
+  std::vector<ParticleId> particles;           ///< the body's particles, ascending (empty once retired)
   SourceShape source;                          ///< the primitive it was filled from, if any
+  bool alive = true;                           ///< false once the body broke apart into new bodies
+  std::int64_t createdStep = 0;                ///< the first step after which it exists (0: from the start)
+  std::int64_t retiredStep = -1;               ///< the step (1 = the first) in which it broke apart, -1 while alive
+  BodyId parent;                               ///< the body it broke off from, if any
 };
 
 struct BodyStore {

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <limits>
 #include <string>
 
 namespace volpar {
@@ -10,6 +11,10 @@ struct Material {
   double density = 1000.0;    ///< [kg/m^3]; a particle's mass is density x the volume it stands for
   double restitution = 0.5;   ///< [-] in [0, 1]
   double friction = 0.5;      ///< Coulomb coefficient [-], >= 0
+  /// Breaking thresholds of the connectors of bodies made of it, where the body sets none: rods break above
+  /// this force [N], springs above this strain [-]; infinity = unbreakable.
+  double rodStrength = std::numeric_limits<double>::infinity();
+  double strainLimit = std::numeric_limits<double>::infinity();
 };
 
 }  // namespace volpar

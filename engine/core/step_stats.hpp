@@ -15,6 +15,7 @@ struct StageTimes {
   double particleContacts = 0.0;
   double narrowPhase = 0.0;
   double solver = 0.0;
+  double breakage = 0.0;
   double total = 0.0;
 
   StageTimes& operator+=(const StageTimes& o) {
@@ -24,6 +25,7 @@ struct StageTimes {
     particleContacts += o.particleContacts;
     narrowPhase += o.narrowPhase;
     solver += o.solver;
+    breakage += o.breakage;
     total += o.total;
     return *this;
   }
@@ -47,6 +49,8 @@ struct StepStats {
   std::size_t normalsRecomputed = 0;   ///< cached surface normals recomputed this step
   std::size_t contactPoints = 0;       ///< solver contact points (patches reduced to at most 4 points)
   std::size_t warmStarted = 0;         ///< of them, warm started from the previous step
+  std::size_t connectorsBroken = 0;    ///< rods and springs that broke this step
+  std::size_t bodiesCreated = 0;       ///< fragments made by bodies breaking apart this step
 };
 
 }  // namespace volpar

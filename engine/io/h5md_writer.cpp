@@ -3,6 +3,7 @@
 #include <hdf5.h>
 
 #include <array>
+#include <limits>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -190,13 +191,16 @@ void scalarString(hid_t parent, const std::string& name, const std::string& valu
 class Series {
  public:
   Series() = default;
-  Series(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail) : tail_(std::move(tail)) {
+  /// With `growable`, the first dimension after the frames can grow too (bodies appear when bodies break);
+  /// entries not written yet read as NaN (floating-point data).
+  Series(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, bool growable = false)
+      : tail_(std::move(tail)) {
     std::vector<hsize_t> dims{0}, maxdims{H5S_UNLIMITED}, chunk{1};
     hsize_t rowSize = 1;
-    for (const hsize_t d : tail_) {
-      dims.push_back(d);
-      maxdims.push_back(d);
-      rowSize *= d;
+    for (std::size_t k = 0; k < tail_.size(); ++k) {
+      dims.push_back(tail_[k]);
+      maxdims.push_back(growable && k == 0 ? H5S_UNLIMITED : tail_[k]);
+      rowSize *= tail_[k];
     }
     // Small chunks: the file is flushed after every frame, which recompresses the partly filled last
     // chunk, so a chunk holds at most 8 KiB of small rows (several frames) or 64 KiB of one big row.
@@ -211,8 +215,20 @@ class Series {
       chunk.push_back(std::clamp<hsize_t>(kBigChunk / (rowSize / tail_[0]), 1, tail_[0]));
       for (std::size_t k = 1; k < tail_.size(); ++k) chunk.push_back(tail_[k]);
     }
+    // bodies appear over a run: chunks 64 bodies wide, whatever the count at the start
+    if (growable && !tail_.empty()) {
+      hsize_t row = 1;
+      for (std::size_t k = 1; k < tail_.size(); ++k) row *= tail_[k];
+      chunk[1] = 64;
+      chunk[0] = std::max<hsize_t>(1, kSmallRow / (64 * row));
+    }
+    for (hsize_t& c : chunk) c = std::max<hsize_t>(c, 1);
     Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), maxdims.data()), H5Sclose, "space");
     Hid dcpl = compressedPlist(chunk);
+    if (H5Tget_class(type) == H5T_FLOAT) {
+      const double nan = std::numeric_limits<double>::quiet_NaN();
+      check(H5Pset_fill_value(dcpl.get(), H5T_NATIVE_DOUBLE, &nan), "fill value");
+    }
     ds_ = checked(H5Dcreate2(parent, name.c_str(), type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
                   "dataset " + name);
   }
@@ -240,6 +256,24 @@ class Series {
   }
   [[nodiscard]] hsize_t rows() const { return rows_; }
 
+  /// Grows the first dimension after the frames to `n` (growable series only); earlier frames read NaN there.
+  void growTail(hsize_t n) {
+    if (n <= tail_[0]) return;
+    tail_[0] = n;
+    std::vector<hsize_t> dims{rows_};
+    for (const hsize_t d : tail_) dims.push_back(d);
+    check(H5Dset_extent(ds_.get(), dims.data()), "grow dataset");
+  }
+
+  /// Overwrites element `i` of a one-dimensional series.
+  void writeAt(hsize_t i, hid_t memType, const void* data) {
+    Hid fileSpace = checked(H5Dget_space(ds_.get()), H5Sclose, "dataset space");
+    const hsize_t one = 1;
+    check(H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, &i, nullptr, &one, nullptr), "select");
+    Hid memSpace = checked(H5Screate_simple(1, &one, nullptr), H5Sclose, "space");
+    check(H5Dwrite(ds_.get(), memType, memSpace.get(), fileSpace.get(), H5P_DEFAULT, data), "write element");
+  }
+
  private:
   Hid ds_;
   std::vector<hsize_t> tail_;
@@ -253,9 +287,9 @@ class Element {
   /// With `clock` given, step and time are hard links to that element's (H5MD allows sharing them
   /// between elements sampled together), and append() leaves them to the owner.
   Element(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, const std::string& unit,
-          const Element* clock = nullptr) {
+          const Element* clock = nullptr, bool growable = false) {
     group_ = group(parent, name);
-    value_ = Series(group_.get(), "value", type, std::move(tail));
+    value_ = Series(group_.get(), "value", type, std::move(tail), growable);
     if (!unit.empty()) attrString(value_.id(), "unit", unit);
     if (clock) {
       check(H5Lcreate_hard(clock->group_.get(), "step", group_.get(), "step", H5P_DEFAULT, H5P_DEFAULT), "link step");
@@ -267,6 +301,7 @@ class Element {
     time_ = Series(group_.get(), "time", H5T_IEEE_F64LE, {});
     attrString(time_.id(), "unit", "s");
   }
+  void growTail(hsize_t n) { value_.growTail(n); }
   void append(hid_t memType, const void* data, std::int64_t step, double time) {
     value_.append(memType, data);
     if (!ownsClock_) return;
@@ -325,6 +360,47 @@ struct ContactSeries {
   }
 };
 
+/// Per-body data that does not change over a body's life, one row per body, appended as bodies appear.
+struct BodyInfoSeries {
+  Series name, kind, mass, moments, axes, com, created, retired, parent;
+  explicit BodyInfoSeries(hid_t g = H5I_INVALID_HID) {
+    if (g < 0) return;
+    Hid str = vlenString();
+    name = Series(g, "name", str.get(), {});
+    kind = Series(g, "kind", str.get(), {});
+    mass = Series(g, "mass", H5T_IEEE_F64LE, {});
+    moments = Series(g, "principal_moments", H5T_IEEE_F64LE, {3});
+    axes = Series(g, "principal_axes", H5T_IEEE_F64LE, {4});
+    com = Series(g, "com_in_shape", H5T_IEEE_F64LE, {3});
+    created = Series(g, "created", H5T_STD_I64LE, {});
+    retired = Series(g, "retired", H5T_STD_I64LE, {});
+    parent = Series(g, "parent", H5T_STD_I32LE, {});
+    attrString(mass.id(), "unit", "kg");
+    attrString(moments.id(), "unit", "kg m2");
+    attrString(com.id(), "unit", "m");
+  }
+};
+
+/// The connectors that broke, one row per event.
+struct BreakageSeries {
+  Hid group;
+  Series step, time, connector, particleA, particleB, body, kind, value;
+  explicit BreakageSeries(hid_t file = H5I_INVALID_HID) {
+    if (file < 0) return;
+    group = ::volpar::group(file, "breakage");
+    step = Series(group.get(), "step", H5T_STD_I64LE, {});
+    time = Series(group.get(), "time", H5T_IEEE_F64LE, {});
+    connector = Series(group.get(), "connector", H5T_STD_I32LE, {});
+    particleA = Series(group.get(), "particle_a", H5T_STD_I32LE, {});
+    particleB = Series(group.get(), "particle_b", H5T_STD_I32LE, {});
+    body = Series(group.get(), "body", H5T_STD_I32LE, {});
+    kind = Series(group.get(), "kind", H5T_STD_I32LE, {});
+    value = Series(group.get(), "value", H5T_IEEE_F64LE, {});
+    attrString(time.id(), "unit", "s");
+    attrString(kind.id(), "meaning", "0: rod (value: force, N), 1: spring (value: strain)");
+  }
+};
+
 struct H5mdWriter::Impl {
   Hid file;
   Element position, velocity, particleBody;
@@ -332,12 +408,52 @@ struct H5mdWriter::Impl {
   Element kinetic, potential, total, linearMomentum, angularMomentum, contactCount, maxPenetration;
   Element patchCount, patchesByCase, unvalidatedPatches, lookAheads, candidates;
   ContactSeries contacts;
+  BodyInfoSeries bodyInfo;
+  BreakageSeries breakage;
+  std::size_t bodiesWritten = 0;       // rows in bodyInfo
+  std::vector<std::uint8_t> retiredWritten;
   // scratch, reused
   std::vector<std::int32_t> bodyIndex;
   std::vector<double> bodyVec3, bodyQuat;
   std::vector<std::int32_t> contactA, contactB, contactPlane;
   std::vector<double> contactPoint, contactNormal, contactDepth;
   std::size_t particles = 0;
+
+  /// Rows for bodies created since the last call; the retirement of bodies that broke apart.
+  void syncBodies(const BodyStore& b) {
+    const std::size_t nb = b.size();
+    for (std::size_t i = bodiesWritten; i < nb; ++i) {
+      const BodyInfo& info = b.info[i];
+      const char* nm = info.name.c_str();
+      const std::string kindText = kindName(info.kind);
+      const char* kd = kindText.c_str();
+      Hid str = vlenString();
+      bodyInfo.name.append(str.get(), &nm);
+      bodyInfo.kind.append(str.get(), &kd);
+      bodyInfo.mass.append(H5T_NATIVE_DOUBLE, &info.mass);
+      bodyInfo.moments.append(H5T_NATIVE_DOUBLE, info.inertiaLocal.data());
+      const Quat& q = info.principalInShape;
+      const double axes[4] = {q.w(), q.x(), q.y(), q.z()};
+      bodyInfo.axes.append(H5T_NATIVE_DOUBLE, axes);
+      bodyInfo.com.append(H5T_NATIVE_DOUBLE, info.comInShape.data());
+      bodyInfo.created.append(H5T_NATIVE_INT64, &info.createdStep);
+      bodyInfo.retired.append(H5T_NATIVE_INT64, &info.retiredStep);
+      const std::int32_t parent = info.parent.valid() ? static_cast<std::int32_t>(info.parent.value) : -1;
+      bodyInfo.parent.append(H5T_NATIVE_INT32, &parent);
+      retiredWritten.push_back(info.retiredStep >= 0 ? 1 : 0);
+    }
+    if (nb > bodiesWritten) {
+      for (Element* e : {&bodyPosition, &bodyOrientation, &bodyVelocity, &bodyAngularVelocity}) e->growTail(nb);
+      bodiesWritten = nb;
+      bodyVec3.resize(3 * nb);
+      bodyQuat.resize(4 * nb);
+    }
+    for (std::size_t i = 0; i < nb; ++i)
+      if (!retiredWritten[i] && b.info[i].retiredStep >= 0) {
+        bodyInfo.retired.writeAt(i, H5T_NATIVE_INT64, &b.info[i].retiredStep);
+        retiredWritten[i] = 1;
+      }
+  }
 };
 
 H5mdWriter::H5mdWriter(std::unique_ptr<Impl> impl, std::string path) : impl_(std::move(impl)), path_(std::move(path)) {}
@@ -378,34 +494,21 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       impl->velocity = Element(all.get(), "velocity", H5T_IEEE_F64LE, {np, 3}, "m s-1", &impl->position);
       impl->particleBody = Element(all.get(), "body", H5T_STD_I32LE, {np}, "", &impl->position);
     }
-    // /particles/bodies
+    // /particles/bodies: one row per body ever created (bodies appear when others break apart)
     {
       Hid bodies = group(f, "particles/bodies");
       writeBox(bodies.get());
-      std::vector<std::string> names, kinds;
-      std::vector<double> mass, inertia, axes, com;
-      for (std::size_t i = 0; i < nb; ++i) {
-        const BodyInfo& info = b.info[i];
-        names.push_back(info.name);
-        kinds.push_back(kindName(info.kind));
-        mass.push_back(info.mass);
-        for (int k = 0; k < 3; ++k) inertia.push_back(info.inertiaLocal[k]);
-        const Quat& q = info.principalInShape;
-        axes.insert(axes.end(), {q.w(), q.x(), q.y(), q.z()});
-        for (int k = 0; k < 3; ++k) com.push_back(info.comInShape[k]);
-      }
-      stringDataset(bodies.get(), "name", names);
-      stringDataset(bodies.get(), "kind", kinds);
-      dataset<double>(bodies.get(), "mass", {nb}, mass.data(), "kg");
-      dataset<double>(bodies.get(), "principal_moments", {nb, 3}, inertia.data(), "kg m2");
-      dataset<double>(bodies.get(), "principal_axes", {nb, 4}, axes.data());
-      dataset<double>(bodies.get(), "com_in_shape", {nb, 3}, com.data(), "m");
-      impl->bodyPosition = Element(bodies.get(), "position", H5T_IEEE_F64LE, {nb, 3}, "m");
-      impl->bodyOrientation = Element(bodies.get(), "orientation", H5T_IEEE_F64LE, {nb, 4}, "", &impl->bodyPosition);
-      impl->bodyVelocity = Element(bodies.get(), "velocity", H5T_IEEE_F64LE, {nb, 3}, "m s-1", &impl->bodyPosition);
+      impl->bodyInfo = BodyInfoSeries(bodies.get());
+      impl->bodyPosition = Element(bodies.get(), "position", H5T_IEEE_F64LE, {nb, 3}, "m", nullptr, true);
+      impl->bodyOrientation =
+          Element(bodies.get(), "orientation", H5T_IEEE_F64LE, {nb, 4}, "", &impl->bodyPosition, true);
+      impl->bodyVelocity = Element(bodies.get(), "velocity", H5T_IEEE_F64LE, {nb, 3}, "m s-1", &impl->bodyPosition, true);
       impl->bodyAngularVelocity =
-          Element(bodies.get(), "angular_velocity", H5T_IEEE_F64LE, {nb, 3}, "s-1", &impl->bodyPosition);
+          Element(bodies.get(), "angular_velocity", H5T_IEEE_F64LE, {nb, 3}, "s-1", &impl->bodyPosition, true);
+      impl->syncBodies(b);
     }
+    // /breakage: every connector that broke (the engine's own group)
+    impl->breakage = BreakageSeries(f);
     // /observables
     {
       Hid obs = group(f, "observables");
@@ -467,8 +570,6 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       }
     }
     impl->bodyIndex.resize(p.size());
-    impl->bodyVec3.resize(3 * b.size());
-    impl->bodyQuat.resize(4 * b.size());
     check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
   } catch (const H5Failure& e) {
     return Error{path, 0, 0, "cannot write trajectory (" + e.what + ")"};
@@ -489,24 +590,28 @@ Status H5mdWriter::writeFrame(const World& world) {
     for (std::size_t i = 0; i < p.size(); ++i) m.bodyIndex[i] = static_cast<std::int32_t>(p.body[i].value);
     m.particleBody.append(H5T_NATIVE_INT32, m.bodyIndex.data(), step, time);
 
+    m.syncBodies(b);
     const std::size_t nb = b.size();
-    for (std::size_t i = 0; i < nb; ++i)
-      for (int k = 0; k < 3; ++k) m.bodyVec3[3 * i + k] = b.state[i].position[k];
-    m.bodyPosition.append(H5T_NATIVE_DOUBLE, m.bodyVec3.data(), step, time);
+    constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+    // a body that broke apart has no state any more: NaN from its retirement on
+    auto vec3s = [&](auto get) {
+      for (std::size_t i = 0; i < nb; ++i)
+        for (int k = 0; k < 3; ++k) m.bodyVec3[3 * i + static_cast<std::size_t>(k)] = b.info[i].alive ? get(i)[k] : kNan;
+      return m.bodyVec3.data();
+    };
+    m.bodyPosition.append(H5T_NATIVE_DOUBLE, vec3s([&](std::size_t i) { return b.state[i].position; }), step, time);
     for (std::size_t i = 0; i < nb; ++i) {
-      const Quat q = b.info[i].kind == BodyKind::Deformable ? Quat::Identity() : b.shapeOrientation(BodyId(i));
-      m.bodyQuat[4 * i + 0] = q.w();
-      m.bodyQuat[4 * i + 1] = q.x();
-      m.bodyQuat[4 * i + 2] = q.y();
-      m.bodyQuat[4 * i + 3] = q.z();
+      const Quat q = b.shapeOrientation(BodyId(i));
+      const bool alive = b.info[i].alive;
+      m.bodyQuat[4 * i + 0] = alive ? q.w() : kNan;
+      m.bodyQuat[4 * i + 1] = alive ? q.x() : kNan;
+      m.bodyQuat[4 * i + 2] = alive ? q.y() : kNan;
+      m.bodyQuat[4 * i + 3] = alive ? q.z() : kNan;
     }
     m.bodyOrientation.append(H5T_NATIVE_DOUBLE, m.bodyQuat.data(), step, time);
-    for (std::size_t i = 0; i < nb; ++i)
-      for (int k = 0; k < 3; ++k) m.bodyVec3[3 * i + k] = b.state[i].linearVelocity[k];
-    m.bodyVelocity.append(H5T_NATIVE_DOUBLE, m.bodyVec3.data(), step, time);
-    for (std::size_t i = 0; i < nb; ++i)
-      for (int k = 0; k < 3; ++k) m.bodyVec3[3 * i + k] = b.state[i].angularVelocity[k];
-    m.bodyAngularVelocity.append(H5T_NATIVE_DOUBLE, m.bodyVec3.data(), step, time);
+    m.bodyVelocity.append(H5T_NATIVE_DOUBLE, vec3s([&](std::size_t i) { return b.state[i].linearVelocity; }), step, time);
+    m.bodyAngularVelocity.append(H5T_NATIVE_DOUBLE, vec3s([&](std::size_t i) { return b.state[i].angularVelocity; }),
+                                 step, time);
 
     const EnergyReport e = world.energy();
     const double kinetic = e.kinetic, potential = e.potential, total = e.total();
@@ -578,6 +683,30 @@ void H5mdWriter::writeContacts(const ContactSet& set) {
   cs.point.appendRows(H5T_NATIVE_DOUBLE, m.contactPoint.data(), n);
   cs.normal.appendRows(H5T_NATIVE_DOUBLE, m.contactNormal.data(), n);
   cs.depth.appendRows(H5T_NATIVE_DOUBLE, m.contactDepth.data(), n);
+}
+
+Status H5mdWriter::writeBreakEvents(const World& world) {
+  if (!impl_ || !impl_->file.valid()) return Error{path_, 0, 0, "trajectory is closed"};
+  BreakageSeries& s = impl_->breakage;
+  try {
+    for (const BreakEvent& e : world.breakEvents()) {
+      const double t = static_cast<double>(e.step) * world.settings().dt;
+      const auto i32 = [](std::uint32_t v) { return static_cast<std::int32_t>(v); };
+      const std::int32_t c = i32(e.connector.value), a = i32(e.a.value), bb = i32(e.b.value), body = i32(e.body.value),
+                         kind = e.kind == ConnectorKind::Rod ? 0 : 1;
+      s.step.append(H5T_NATIVE_INT64, &e.step);
+      s.time.append(H5T_NATIVE_DOUBLE, &t);
+      s.connector.append(H5T_NATIVE_INT32, &c);
+      s.particleA.append(H5T_NATIVE_INT32, &a);
+      s.particleB.append(H5T_NATIVE_INT32, &bb);
+      s.body.append(H5T_NATIVE_INT32, &body);
+      s.kind.append(H5T_NATIVE_INT32, &kind);
+      s.value.append(H5T_NATIVE_DOUBLE, &e.value);
+    }
+  } catch (const H5Failure& e) {
+    return Error{path_, 0, 0, "cannot write breakage events (" + e.what + ")"};
+  }
+  return okStatus();
 }
 
 Status H5mdWriter::writeSidecar() const {

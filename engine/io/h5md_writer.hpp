@@ -32,6 +32,8 @@ class H5mdWriter {
 
   /// Appends the world's current state as one frame and flushes the file.
   [[nodiscard]] Status writeFrame(const World& world);
+  /// Appends the connectors that broke in the world's last step to /breakage (written with the next flush).
+  [[nodiscard]] Status writeBreakEvents(const World& world);
   /// Writes the XDMF sidecar for the frames so far (see xdmf_writer.hpp).
   [[nodiscard]] Status writeSidecar() const;
   /// Flushes and closes the file (also done by the destructor).

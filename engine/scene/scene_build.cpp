@@ -115,6 +115,18 @@ Result<BuiltScene> buildScene(const SceneDesc& desc) {
     const BodyDesc& b = desc.bodies[d];
     auto cloud = buildCloud(desc, b);
     if (!cloud) return cloud.error();
+    if (!b.pins.empty()) {
+      cloud->pinned.assign(cloud->size(), 0);
+      for (std::size_t k = 0; k < b.pins.size(); ++k) {
+        std::size_t held = 0;
+        for (std::size_t i = 0; i < cloud->size(); ++i)
+          if (b.pins[k].contains(cloud->positions[i])) {
+            cloud->pinned[i] = 1;
+            ++held;
+          }
+        if (held == 0) return at(desc, b.pinMarks[k], "this pin box holds no particle of the body (in its shape frame)");
+      }
+    }
     if (const auto* mesh = std::get_if<MeshDesc>(&b.shape)) built.meshFiles.push_back(mesh->path);
     const auto& c = b.repeat.count;
     totalParticles += cloud->size() * static_cast<std::size_t>(c[0] * c[1] * c[2]);
@@ -136,6 +148,11 @@ Result<BuiltScene> buildScene(const SceneDesc& desc) {
           def.linearVelocity = b.velocity;
           def.angularVelocity = b.angularVelocity;
           def.connectors = b.connectors;
+          if (!std::isfinite(def.connectors.breakLimit) && b.kind != BodyKind::Static) {
+            // the material's threshold where the body sets none
+            const Material& mat = desc.materials.at(b.material);
+            def.connectors.breakLimit = def.connectors.kind == ConnectorKind::Spring ? mat.strainLimit : mat.rodStrength;
+          }
           def.particleMass = b.particleMass;
           def.totalMass = b.mass;
           def.source = sourceOf(b.shape);

@@ -74,6 +74,9 @@ struct BodyDesc {
   Vec3 velocity = Vec3::Zero();             ///< [m/s]
   Vec3 angularVelocity = Vec3::Zero();      ///< [rad/s]
   RepeatDesc repeat;
+  /// Deformable bodies: particles inside any of these boxes (shape frame, [m]) are held fixed in space.
+  std::vector<Eigen::AlignedBox3d> pins;    ///< particles inside (shape frame) are held in place
+  std::vector<SourceMark> pinMarks;         ///< where each pin box is in the scene file
   SourceMark mark;                          ///< the body's entry in the scene file
 };
 

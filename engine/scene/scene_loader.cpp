@@ -235,12 +235,15 @@ Quat orientation(const Ctx& ctx, const YAML::Node& n) {
 }
 
 Material material(const Ctx& ctx, const YAML::Node& n, const std::string& name) {
-  const MapReader m(ctx, n, "material '" + name + "'", {"density", "restitution", "friction"});
+  const MapReader m(ctx, n, "material '" + name + "'",
+                    {"density", "restitution", "friction", "rod_strength", "strain_limit"});
   Material mat;
   mat.name = name;
   if (m.has("density")) mat.density = positive(ctx, m.get("density"), "density", "kg/m^3");
   if (m.has("restitution")) mat.restitution = inRange(ctx, m.get("restitution"), "restitution", 0.0, 1.0);
   if (m.has("friction")) mat.friction = nonNegative(ctx, m.get("friction"), "friction", "-");
+  if (m.has("rod_strength")) mat.rodStrength = positive(ctx, m.get("rod_strength"), "rod strength", "N");
+  if (m.has("strain_limit")) mat.strainLimit = positive(ctx, m.get("strain_limit"), "spring strain limit", "-");
   return mat;
 }
 
@@ -359,6 +362,8 @@ ConnectorParams connectors(const Ctx& ctx, const YAML::Node& n, BodyKind kind) {
     const YAML::Node r = m.get("rods");
     if (r.IsNull() || (r.IsMap() && r.size() == 0)) return c;
     const MapReader rm(ctx, r, "rods", {"strength"});
+    if (rm.has("strength") && kind == BodyKind::Static)
+      ctx.fail(rm.keyMark("strength"), "static bodies never break; give the rods a strength on a rigid or deformable body");
     if (rm.has("strength")) c.breakLimit = positive(ctx, rm.get("strength"), "rod strength", "N");
     return c;
   }
@@ -398,7 +403,7 @@ RepeatDesc repeat(const Ctx& ctx, const YAML::Node& n) {
 BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std::filesystem::path& sceneDir) {
   const MapReader m(ctx, n, "body",
                     {"name", "kind", "shape", "fill", "connectors", "material", "mass", "particle_mass", "position",
-                     "orientation", "velocity", "angular_velocity", "repeat"});
+                     "orientation", "velocity", "angular_velocity", "repeat", "pin"});
   BodyDesc b;
   b.mark = {n.Mark().line + 1, n.Mark().column + 1};
   b.name = m.has("name") ? text(ctx, m.get("name"), "body name") : "body" + std::to_string(index);
@@ -423,6 +428,23 @@ BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std:
   if (m.has("velocity")) b.velocity = vec3(ctx, m.get("velocity"), "velocity");
   if (m.has("angular_velocity")) b.angularVelocity = vec3(ctx, m.get("angular_velocity"), "angular velocity");
   if (m.has("repeat")) b.repeat = repeat(ctx, m.get("repeat"));
+  if (m.has("pin")) {
+    if (b.kind != BodyKind::Deformable) ctx.fail(m.keyMark("pin"), "only deformable bodies can have pinned particles");
+    auto box = [&](const YAML::Node& node) {
+      const MapReader pm(ctx, node, "pin", {"min", "max"});
+      const YAML::Node hi = pm.require("max");
+      const Vec3 lo = vec3(ctx, pm.require("min"), "pin min"), up = vec3(ctx, hi, "pin max");
+      if (!(lo.array() <= up.array()).all()) ctx.fail(hi.Mark(), "expected pin max >= pin min in every coordinate");
+      b.pins.emplace_back(lo, up);
+      b.pinMarks.push_back({node.Mark().line + 1, node.Mark().column + 1});
+    };
+    const YAML::Node pins = m.get("pin");
+    if (pins.IsSequence()) {
+      for (const auto& node : pins) box(node);
+    } else {
+      box(pins);
+    }
+  }
   if (b.kind == BodyKind::Static && (b.velocity.norm() > 0.0 || b.angularVelocity.norm() > 0.0))
     ctx.fail(m.mark(), "a static body cannot have a velocity");
   return b;
@@ -460,7 +482,7 @@ SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::p
   if (m.has("allow_initial_overlap")) s.allowInitialOverlap = boolean(ctx, m.get("allow_initial_overlap"), "allow_initial_overlap");
   if (m.has("materials")) {
     const YAML::Node mats = m.get("materials");
-    if (!mats.IsMap()) ctx.fail(mats.Mark(), "expected a map of materials {name: {density, restitution, friction}}");
+    if (!mats.IsMap()) ctx.fail(mats.Mark(), "expected a map of materials {name: {density, restitution, friction, rod_strength, strain_limit}}");
     std::set<std::string> seen;
     for (auto it = mats.begin(); it != mats.end(); ++it) {
       const std::string name = text(ctx, it->first, "material name");

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <numbers>
 
 #include "tests/support/test_support.hpp"
@@ -77,6 +79,158 @@ bodies:
   const Vec3 shift = w.particles().position[0] - start[0];
   for (std::size_t i = 0; i < start.size(); ++i) EXPECT_LT((w.particles().position[i] - start[i] - shift).norm(), 1e-9);
   EXPECT_NEAR(w.bodies().state[0].linearVelocity.z(), 2 - 9.81, 1e-9);
+}
+
+}  // namespace
+}  // namespace volpar
+
+namespace volpar {
+namespace {
+
+TEST(Deformable, PinnedMassOnASpringOscillatesAtSqrtKOverM) {
+  // particle 0 pinned, particle 1 (0.2 kg) hanging 0.1 m below on a 500 N/m spring, no gravity
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+gravity: [0, 0, 0]
+solver: {substeps: 8}
+bodies:
+  - kind: deformable
+    particle_mass: 0.2
+    connectors: {springs: {stiffness: 500}}
+    pin: {min: [-0.01, -0.01, -0.01], max: [0.01, 0.01, 0.01]}
+    shape:
+      particles: {positions: [[0, 0, 0], [0, 0, -0.1]], radius: 0.05}
+)");
+  w.editParticles().position[1] = Vec3(0, 0, -0.102);  // stretched 2 mm
+  const double omega = std::sqrt(500.0 / 0.2), period = 2 * std::numbers::pi / omega;
+  std::vector<double> crossings;
+  double previous = -0.002;
+  const double dt = 1.0 / 240.0;
+  for (int i = 1; i <= static_cast<int>(6 * period / dt); ++i) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    EXPECT_EQ(w.particles().position[0], Vec3::Zero());  // the pin holds
+    const double x = w.particles().position[1].z() + 0.1;
+    if ((x > 0) != (previous > 0)) crossings.push_back((i - 1 + previous / (previous - x)) * dt);
+    previous = x;
+  }
+  ASSERT_GE(crossings.size(), 10u);
+  const double measured = 2 * (crossings.back() - crossings.front()) / static_cast<double>(crossings.size() - 1);
+  EXPECT_NEAR(measured / period, 1.0, 0.02);
+}
+
+TEST(Deformable, HangingChainStretchesByTheWeightBelowEachSpring) {
+  // ten 0.1 kg particles hanging from a pinned one, springs of 2000 N/m: spring i (from the top) carries the
+  // weight of the particles below it, so the bottom sinks by sum_i (n - i) m g / k
+  std::string positions;
+  for (int i = 0; i <= 10; ++i) positions += (i ? ", " : "") + std::string("[0, 0, ") + std::to_string(-0.1 * i) + "]";
+  World w = test::worldFromString(
+      "dt: 0.004166666666666667\nsteps: 1\nsolver: {substeps: 20}\nbodies:\n  - kind: deformable\n    particle_mass: 0.1\n"
+      "    connectors: {springs: {stiffness: 2000, damping: 20}}\n"
+      "    pin: {min: [-0.01, -0.01, -0.01], max: [0.01, 0.01, 0.01]}\n"
+      "    shape:\n      particles: {radius: 0.05, positions: [" + positions + "]}\n");
+  ASSERT_EQ(w.particles().size(), 11u);
+  for (int i = 0; i < 2400; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
+  double expected = 0.0;
+  for (int i = 1; i <= 10; ++i) expected += (11 - i) * 0.1 * 9.81 / 2000.0;
+  const double sag = -0.1 * 10 - w.particles().position[10].z();
+  EXPECT_NEAR(sag, expected, 0.05 * expected);
+  EXPECT_LT(w.energy().kinetic, 1e-6);
+}
+
+/// det of the best-fit deformation gradient of a deformable body (its volume relative to the rest shape).
+double volumeRatio(const World& w, BodyId id) {
+  const BodyInfo& info = w.bodies().info[id.index()];
+  const Vec3 c = w.bodies().state[id.index()].position;
+  Mat3 apq = Mat3::Zero(), aqq = Mat3::Zero();
+  for (const ParticleId p : info.particles) {
+    const double m = w.particles().mass[p.index()];
+    const Vec3& q = w.particles().local[p.index()];
+    apq += m * (w.particles().position[p.index()] - c) * q.transpose();
+    aqq += m * q * q.transpose();
+  }
+  return (apq * aqq.inverse()).determinant();
+}
+
+TEST(Deformable, JellyLandsWobblesAndRecoversItsShape) {
+  std::ifstream in(test::sourcePath("scenes/examples/jelly.yaml"));
+  World w = test::worldFromString(std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()),
+                                  "examples/jelly.yaml");
+  double squash = 0.0;
+  double peak = 0.0;
+  for (int i = 0; i < 960; ++i) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    peak = std::max(peak, w.energy().kinetic);
+    squash = std::max(squash, std::abs(volumeRatio(w, BodyId(0u)) - 1.0));
+  }
+  EXPECT_GT(squash, 0.02);                                 // the landing squashes it
+  EXPECT_NEAR(volumeRatio(w, BodyId(0u)), 1.0, 0.05);      // and it recovers
+  EXPECT_LT(w.energy().kinetic, 1e-6 * peak);              // and comes to rest
+  EXPECT_NEAR(w.bodies().state[0].position.z(), 0.2, 0.02);  // resting on the floor
+}
+
+TEST(Deformable, ClothDrapesOverTheBallWithoutPassingThrough) {
+  std::ifstream in(test::sourcePath("scenes/examples/cloth.yaml"));
+  World w = test::worldFromString(std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()),
+                                  "examples/cloth.yaml");
+  const BodyInfo& ball = w.bodies().info[0];
+  const BodyInfo& cloth = w.bodies().info[1];
+  double worst = 0.0;
+  for (int i = 0; i < 720; ++i) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    if (i % 20 != 0) continue;
+    for (const ParticleContact& c : w.contacts().contacts)
+      if (w.particles().body[c.a.index()] == BodyId(0u) && c.b.valid())
+        worst = std::max(worst, c.depth / (w.particles().radius[c.a.index()] + w.particles().radius[c.b.index()]));
+  }
+  EXPECT_LT(worst, 0.15);  // no cloth particle sinks into the ball's particles
+  // every cloth particle outside the ball's particle shell, and the cloth at rest on it
+  for (const ParticleId p : cloth.particles) {
+    double nearest = 1e9;
+    for (const ParticleId q : ball.particles)
+      nearest = std::min(nearest, (w.particles().position[p.index()] - w.particles().position[q.index()]).norm());
+    EXPECT_GT(nearest, 0.8 * 0.05);
+  }
+  double top = -1e9, ballTop = -1e9;
+  for (const ParticleId p : cloth.particles) top = std::max(top, w.particles().position[p.index()].z());
+  for (const ParticleId q : ball.particles)
+    ballTop = std::max(ballTop, w.particles().position[q.index()].z() + w.particles().radius[q.index()]);
+  EXPECT_GT(ballTop, 0.55);
+  EXPECT_GT(top, ballTop);  // held up by the ball, above its highest particle
+  EXPECT_LT(w.energy().kinetic, 0.1);
+}
+
+TEST(Deformable, BridgeCarriesTheCrateDroppedOnIt) {
+  std::ifstream in(test::sourcePath("scenes/examples/bridge.yaml"));
+  World w = test::worldFromString(std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()),
+                                  "examples/bridge.yaml");
+  const BodyInfo& plank = w.bodies().info[0];
+  const std::vector<Vec3> start = w.particles().position;
+  for (int i = 0; i < 960; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
+  // the pinned ends hold, the middle sags
+  std::size_t pinned = 0;
+  double lowest = 1e9;
+  for (const ParticleId p : plank.particles) {
+    const std::size_t i = p.index();
+    if (w.particles().invMass[i] == 0.0) {
+      ++pinned;
+      EXPECT_EQ(w.particles().position[i], start[i]);
+    }
+    lowest = std::min(lowest, w.particles().position[i].z());
+  }
+  EXPECT_EQ(pinned, 2u * 6u * 2u);
+  EXPECT_LT(lowest, 0.95 - 0.02);
+  // the crate rests on the plank: above the plank particles beneath it, far above the floor
+  const BodyState& crate = w.bodies().state[1];
+  double below = -1e9;
+  for (const ParticleId p : plank.particles) {
+    const Vec3& x = w.particles().position[p.index()];
+    if (std::hypot(x.x() - crate.position.x(), x.y() - crate.position.y()) < 0.1) below = std::max(below, x.z());
+  }
+  EXPECT_GT(below, 0.5);
+  EXPECT_GT(crate.position.z(), below + 0.05 + 0.15 - 0.02);
+  EXPECT_LT(std::abs(crate.position.y()), 0.3);
+  EXPECT_LT(crate.linearVelocity.norm(), 0.3);
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <numbers>
 
 #include "tests/support/test_support.hpp"
@@ -133,6 +135,69 @@ bodies:
   EXPECT_EQ(w.connectors().size(), 54u + 72u);
   EXPECT_EQ(w.connectors().kind[0], ConnectorKind::Spring);
   for (const Vec3& v : w.particles().velocity) EXPECT_EQ(v, Vec3(1, 0, 0));
+}
+
+TEST(SceneBuild, BreakLimitsComeFromTheBodyOrElseItsMaterial) {
+  World w = test::worldFromString(R"(
+dt: 0.01
+steps: 1
+materials:
+  brick: {rod_strength: 250, strain_limit: 0.3}
+bodies:
+  - name: from_material
+    material: brick
+    shape: {box: {size: [0.2, 0.2, 0.2]}}
+    fill: {radius: 0.05}
+  - name: own
+    material: brick
+    connectors: {rods: {strength: 40}}
+    shape: {box: {size: [0.2, 0.2, 0.2]}}
+    fill: {radius: 0.05}
+    position: [1, 0, 0]
+  - name: soft
+    kind: deformable
+    material: brick
+    connectors: {springs: {stiffness: 100}}
+    shape: {box: {size: [0.2, 0.2, 0.2]}}
+    fill: {radius: 0.05}
+    position: [2, 0, 0]
+  - name: plain
+    shape: {box: {size: [0.2, 0.2, 0.2]}}
+    fill: {radius: 0.05}
+    position: [3, 0, 0]
+)");
+  const double expected[] = {250.0, 40.0, 0.3, std::numeric_limits<double>::infinity()};
+  for (std::size_t b = 0; b < 4; ++b) {
+    SCOPED_TRACE(w.bodies().info[b].name);
+    ASSERT_FALSE(w.bodyConnectors(BodyId(b)).empty());
+    for (const ConnectorId c : w.bodyConnectors(BodyId(b))) EXPECT_EQ(w.connectors().breakLimit[c.index()], expected[b]);
+  }
+}
+
+TEST(SceneBuild, PinBoxesHoldTheParticlesInsideThem) {
+  World w = test::worldFromString(R"(
+dt: 0.01
+steps: 1
+bodies:
+  - kind: deformable
+    connectors: {springs: {stiffness: 100}}
+    shape: {box: {size: [0.4, 0.2, 0.1]}}
+    fill: {radius: 0.05}
+    position: [0, 0, 1]
+    pin: [{min: [-0.2, -1, -1], max: [-0.14, 1, 1]}, {min: [0.14, -1, -1], max: [0.2, 1, 1]}]
+)");
+  std::size_t pinned = 0;
+  for (std::size_t i = 0; i < w.particles().size(); ++i) {
+    const bool end = std::abs(std::abs(w.particles().position[i].x()) - 0.15) < 1e-9;
+    EXPECT_EQ(w.particles().invMass[i] == 0.0, end) << i;
+    pinned += end ? 1 : 0;
+  }
+  EXPECT_EQ(pinned, 4u);
+  const std::vector<Vec3> before = w.particles().position;
+  for (int i = 0; i < 50; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
+  for (std::size_t i = 0; i < w.particles().size(); ++i)
+    if (w.particles().invMass[i] == 0.0) EXPECT_EQ(w.particles().position[i], before[i]);
+    else EXPECT_LT(w.particles().position[i].z(), before[i].z() - 1e-3);  // the rest sags
 }
 
 }  // namespace

@@ -108,6 +108,27 @@ std::vector<Case> cases() {
   c.push_back(make("connector index out of range",
                    "dt: 0.01\nsteps: 1\nbodies:\n  - shape:\n      particles: {positions: [[0, 0, 0], [0.1, 0, 0]], radius: 0.05, connectors: [[0, 2]]}\n",
                    "2]]", "expected particle index in [0, 1], got 2"));
+  c.push_back(make("pin on a rigid body",
+                   "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n" + kBox + "    pin: {min: [0, 0, 0], max: [1, 1, 1]}\n", "pin:",
+                   "only deformable bodies can have pinned particles"));
+  c.push_back(make("pin holding nothing",
+                   "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n    kind: deformable\n    connectors: {springs: {stiffness: 100}}\n" +
+                       kBox + "    pin: [{min: [-1, -1, -1], max: [1, 1, 1]}, {min: [5, 5, 5], max: [6, 6, 6]}]\n",
+                   "{min: [5", "this pin box holds no particle of the body"));
+  c.push_back(make("pin max below min",
+                   "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n    kind: deformable\n    connectors: {springs: {stiffness: 100}}\n" +
+                       kBox + "    pin: {min: [0, 0, 0], max: [1, -1, 1]}\n",
+                   "[1, -1, 1]", "expected pin max >= pin min in every coordinate"));
+  c.push_back(make("strength on a static body",
+                   "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n    kind: static\n" + kBox + "    connectors: {rods: {strength: 10}}\n",
+                   "strength", "static bodies never break"));
+  c.push_back(make("negative strain limit",
+                   "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n    kind: deformable\n" + kBox +
+                       "    connectors: {springs: {stiffness: 100, strain_limit: -0.1}}\n",
+                   "-0.1", "expected a positive spring strain limit"));
+  c.push_back(make("material rod strength zero",
+                   "dt: 0.01\nsteps: 1\nmaterials:\n  chalk: {rod_strength: 0}\nbodies:\n  - name: a\n" + kBox, "0}",
+                   "expected a positive rod strength"));
   c.push_back(make("empty scene", "", "", "the scene is empty"));
   c.push_back(make("bodies not a list", "dt: 0.01\nsteps: 1\nbodies: {a: 1}\n", "{a: 1}", "expected a non-empty list of bodies"));
   return c;

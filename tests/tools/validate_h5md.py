@@ -3,7 +3,8 @@
 
 Validates the H5MD 1.1 layout documented in docs/trajectory-format.md, the consistency of the data
 (rigid bodies stay rigid, centres of mass match the particles, energies add up, bodies in free flight
-follow v(t) = v0 + g t), the stored scene text and the XDMF sidecar.
+follow v(t) = v0 + g t, bodies created by breakage exist exactly between their steps of creation and
+retirement), the stored scene text and the XDMF sidecar.
 
 usage: validate_h5md.py FILE.h5 [--scene SCENE.yaml] [--frames N]
        validate_h5md.py --self-test FILE.h5   # damaged copies of FILE must be rejected
@@ -76,19 +77,35 @@ def validate(path, scene=None, frames=None):
     expect(np.array_equal(step, vstep) and np.array_equal(step, bstep), "elements sampled at different steps")
     expect(np.all(np.isfinite(pos)) and np.all(np.isfinite(vel)), "non-finite positions or velocities")
 
-    # /particles/bodies
+    # /particles/bodies: one row per body ever created; a row is NaN in the frames where its body does not
+    # exist (not yet broken off, or already broken apart)
     bodies = f["particles/bodies"]
     names = bodies["name"][()]
     kinds = [k.decode() for k in bodies["kind"][()]]
     B = len(names)
     expect(set(kinds) <= {"rigid", "deformable", "static"}, f"unknown body kinds {set(kinds)}")
+    created, retired, parent = bodies["created"][()], bodies["retired"][()], bodies["parent"][()]
+    expect(created.shape == retired.shape == parent.shape == (B,), "created/retired/parent must be [B]")
+    expect(np.all((parent >= -1) & (parent < np.arange(B))), "a body's parent must be an earlier body or -1")
+    for b in range(B):
+        if parent[b] >= 0:
+            expect(retired[parent[b]] == created[b], f"body {b} was created at step {created[b]}, "
+                                                     f"its parent retired at {retired[parent[b]]}")
+            expect(kinds[b] == kinds[parent[b]], f"body {b} has another kind than its parent")
+        else:
+            expect(created[b] == 0, f"body {b} has no parent but was created at step {created[b]}")
+        expect(retired[b] == -1 or retired[b] >= created[b], f"body {b} retired before it was created")
+    exists = (created[None, :] <= step[:, None]) & ((retired[None, :] < 0) | (step[:, None] < retired[None, :]))
     expect(body.min() >= 0 and body.max() < B, "particle body index out of range")
     bpos, _, _ = element(bodies, "position", (B, 3), "f")
     bq, _, _ = element(bodies, "orientation", (B, 4), "f")
     bvel, _, _ = element(bodies, "velocity", (B, 3), "f")
     bomega, _, _ = element(bodies, "angular_velocity", (B, 3), "f")
     bmass = bodies["mass"][()]
-    expect(np.allclose(np.linalg.norm(bq, axis=2), 1.0, atol=1e-12), "orientations are not unit quaternions")
+    for name, v in (("position", bpos), ("orientation", bq), ("velocity", bvel), ("angular_velocity", bomega)):
+        expect(np.all(np.isfinite(v[exists])), f"body {name} not finite where the body exists")
+        expect(np.all(np.isnan(v[~exists])), f"body {name} not NaN where the body does not exist")
+    expect(np.allclose(np.linalg.norm(bq[exists], axis=1), 1.0, atol=1e-12), "orientations are not unit quaternions")
 
     def rot(q):  # w, x, y, z
         w, x, y, z = q
@@ -97,25 +114,51 @@ def validate(path, scene=None, frames=None):
                          [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
     scale = max(1.0, float(np.abs(pos).max()))
+    vscale = max(1.0, float(np.abs(vel).max()))
+    for t in range(T):
+        owners = np.unique(body[t])
+        expect(np.all(exists[t, owners]), f"frame {t}: particles belong to a body that does not exist")
     for b in range(B):
-        idx = np.nonzero(body[0] == b)[0]
+        frames = np.nonzero(exists[:, b])[0]
+        if len(frames) == 0:
+            continue  # created and broken apart between two frames
+        t0 = frames[0]
+        idx = np.nonzero(body[t0] == b)[0]
         expect(len(idx) > 0, f"body {b} has no particles")
         expect(np.isclose(mass[idx].sum(), bmass[b], rtol=1e-12), f"body {b} mass != sum of particle masses")
-        for t in range(T):
+        local = (pos[t0, idx] - bpos[t0, b]) @ rot(bq[t0, b])  # R^T (p - c) row-wise
+        for t in frames:
+            expect(np.array_equal(np.nonzero(body[t] == b)[0], idx), f"body {b} frame {t}: its particles changed")
             com = (mass[idx, None] * pos[t, idx]).sum(axis=0) / mass[idx].sum()
             expect(np.allclose(com, bpos[t, b], atol=1e-9 * scale), f"body {b} frame {t}: centre != particle mean")
-        if kinds[b] == "deformable":
-            continue
-        # rigid: particles move with the body's pose, velocities are v + w x r
-        r0 = rot(bq[0, b])
-        local = (pos[0, idx] - bpos[0, b]) @ r0  # R0^T (p - c) row-wise
-        for t in range(T):
-            rt = rot(bq[t, b])
-            expected = bpos[t, b] + local @ rt.T
+            if kinds[b] == "deformable":
+                continue
+            # rigid: particles move with the body's pose, velocities are v + w x r
+            expected = bpos[t, b] + local @ rot(bq[t, b]).T
             expect(np.allclose(pos[t, idx], expected, atol=1e-9 * scale), f"body {b} frame {t}: not rigid")
             arm = pos[t, idx] - bpos[t, b]
-            expect(np.allclose(vel[t, idx], bvel[t, b] + np.cross(bomega[t, b], arm), atol=1e-9 * max(1.0, np.abs(vel).max())),
+            expect(np.allclose(vel[t, idx], bvel[t, b] + np.cross(bomega[t, b], arm), atol=1e-9 * vscale),
                    f"body {b} frame {t}: particle velocity != v + w x r")
+
+    # /breakage (present once something broke): one row per broken connector
+    if "breakage" in f:
+        br = f["breakage"]
+        bs, bt = br["step"][()], br["time"][()]
+        n = bs.shape[0]
+        for key in ("connector", "particle_a", "particle_b", "body", "kind", "value"):
+            expect(br[key].shape == (n,), f"/breakage/{key} must be [{n}]")
+        expect(np.all(np.diff(bs) >= 0) and np.allclose(bt, bs * dt, rtol=1e-12), "breakage steps/times")
+        expect(len(np.unique(br["connector"][()])) == n, "a connector broke twice")
+        bb, bk, bv = br["body"][()], br["kind"][()], br["value"][()]
+        expect(np.all((bb >= 0) & (bb < B)) and np.all(np.isin(bk, [0, 1])) and np.all(np.isfinite(bv)),
+               "breakage body/kind/value out of range")
+        pa, pb = br["particle_a"][()], br["particle_b"][()]
+        expect(np.all((pa >= 0) & (pa < P) & (pb >= 0) & (pb < P) & (pa != pb)), "breakage particles out of range")
+        for b in np.nonzero(retired >= 0)[0]:
+            expect(np.any((bb == b) & (bs == retired[b])), f"body {b} broke apart at step {retired[b]} "
+                                                           "without a breakage event")
+    else:
+        expect(np.all(retired < 0), "bodies broke apart but there is no /breakage group")
 
     # observables: energies add up; kinetic energy from the particles' own data where all bodies are point-like
     kin, ostep, otime = element(f["observables"], "kinetic_energy", (), "f")
@@ -127,7 +170,7 @@ def validate(path, scene=None, frames=None):
     expect(np.all(kin >= 0), "negative kinetic energy")
     expect(np.allclose(tot, kin + pot, rtol=1e-12, atol=1e-12 * np.abs(pot).max()), "total != kinetic + potential")
     # translational kinetic energy of the bodies never exceeds the total kinetic energy
-    trans = 0.5 * (bmass[None, :] * (bvel ** 2).sum(axis=2)).sum(axis=1)
+    trans = 0.5 * np.nansum(bmass[None, :] * (bvel ** 2).sum(axis=2), axis=1)
     expect(np.all(trans <= kin * (1 + 1e-9) + 1e-12), "kinetic energy below the bodies' translational energy")
 
     # /contacts: ragged per-frame arrays; every record agrees with the frame's positions
@@ -212,6 +255,9 @@ def self_test(path):
         "body index": lambda f: f["particles/all/body/value"].__setitem__((0, 0), 999),
         "missing velocity": lambda f: f["particles/all"].__delitem__("velocity"),
         "contact offsets": lambda f: f["contacts/offset"].__setitem__(-1, f["contacts/offset"][-1] + 1),
+        "body row of a missing body": lambda f: f["particles/bodies/created"].__setitem__(-1, 10 ** 9),
+        "a body before it exists": lambda f: f["particles/bodies/position/value"].__setitem__((0, -1), np.zeros(3)),
+        "breakage events lost": lambda f: f.__delitem__("breakage"),
     }
     tmp = tempfile.mkdtemp()
     try:
