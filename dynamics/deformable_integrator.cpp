@@ -2,29 +2,36 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 namespace volpar {
+
+namespace {
+/// A contact counts as touching while its particles are less than this fraction of their separation apart
+/// beyond it.
+constexpr double kTouchBand = 0.02;
+/// How far beyond the centre-line overlap (a fraction of the separation) the plane model may push a pair:
+/// enough for a particle resting in the groove between two or three particles of a cubic or hexagonal
+/// lattice face (at most 0.155 there).
+constexpr double kPlaneAllowance = 0.25;
+}  // namespace
 
 void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const DeformableStepInput& in,
                           DeformableScratch& work) {
   std::vector<Vec3>& scratch = work.previous;
   std::vector<Vec3>& push_ = work.push;
-  std::vector<Vec3>& pushNormal_ = work.pushNormal;
   if (in.particles.empty()) return;
   const int substeps = std::max(1, in.substeps);
   const double h = in.dt / substeps;
   scratch.resize(p.size());
-  // per particle: the position correction of this substep's contacts (left out of the velocity) and the
-  // direction of its last active contact (along which inward velocity is removed)
-  std::vector<std::int32_t>& pushContact_ = work.pushContact;
+  // per particle: the position correction of this substep's contacts (left out of the velocity); per
+  // contact: whether it touches in this substep, and along which normal
+  std::vector<std::uint8_t>& touching_ = work.touching;
+  std::vector<Vec3>& touchNormal_ = work.touchNormal;
   push_.resize(p.size());
-  pushNormal_.resize(p.size());
-  pushContact_.resize(p.size());
-  for (const ParticleId id : in.particles) {
-    push_[id.index()] = Vec3::Zero();
-    pushNormal_[id.index()] = Vec3::Zero();
-    pushContact_[id.index()] = -1;
-  }
+  touching_.resize(in.contacts.size());
+  touchNormal_.resize(in.contacts.size());
+  for (const ParticleId id : in.particles) push_[id.index()] = Vec3::Zero();
   for (Vec3& j : in.contactImpulses) j = Vec3::Zero();
   if (!in.shift.empty())
     for (const ParticleId id : in.particles) p.position[id.index()] += in.shift[id.index()];
@@ -72,9 +79,10 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
       }
     }
     // contacts: push particles out. The correction is left out of the velocity (it must not bounce the
-    // particle off), and the velocity into the contact is removed (a particle held up must not keep falling)
+    // particle off); instead every touching contact then removes the relative velocity into it
     for (std::size_t k = 0; k < in.contacts.size(); ++k) {
       const DeformableContact& ct = in.contacts[k];
+      touching_[k] = 0;
       const std::size_t i = ct.p.index();
       const double wp = p.invMass[i];
       const double wo = ct.other.valid() && !ct.otherFixed ? p.invMass[ct.other.index()] : 0.0;
@@ -88,41 +96,71 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
         if (len > 1e-12) n = d / len;
         deficit = ct.separation - len;
       } else if (ct.other.valid()) {
-        // along the patch's plane, but never by more than the pair's actual overlap: a pair that has slid
-        // sideways in the substeps (its offset no longer along the normal) must not be thrown across
+        // along the patch's plane (a particle rests on the tops of a lattice face, as in the contact
+        // solver), but never by much more than the pair's actual overlap: a pair that has slid sideways in
+        // the substeps (its offset no longer along the normal) must not be thrown across
         const Vec3 d = p.position[i] - p.position[ct.other.index()];
-        deficit = std::min(ct.separation - n.dot(d), ct.separation - d.norm());
+        deficit = std::min(ct.separation - n.dot(d), ct.separation * (1.0 + kPlaneAllowance) - d.norm());
       } else {
         deficit = ct.separation - n.dot(p.position[i]);
       }
+      // resting within a small band outside the contact still counts as touching (its velocity into the
+      // contact is removed below), so a particle at rest on another does not chatter in and out
+      if (deficit <= -kTouchBand * ct.separation) continue;
+      touching_[k] = 1;
+      touchNormal_[k] = n;
       if (deficit <= 0.0) continue;
       const Vec3 dp = n * (deficit * wp / (wp + wo));
       p.position[i] += dp;
       push_[i] += dp;
-      pushNormal_[i] = n;
-      pushContact_[i] = ct.otherFixed ? static_cast<std::int32_t>(k) : -1;
-      if (ct.other.valid() && wo > 0.0) {
+      if (wo > 0.0) {
         const Vec3 dq = -n * (deficit * wo / (wp + wo));
         p.position[ct.other.index()] += dq;
         push_[ct.other.index()] += dq;
-        pushNormal_[ct.other.index()] = -n;
-        pushContact_[ct.other.index()] = -1;
       }
+      if (ct.friction <= 0.0) continue;
+      // Coulomb friction on this substep's sliding (position-based: the pair's tangential displacement is
+      // undone up to friction x the normal correction); it counts towards the velocity, and what it takes
+      // from a particle against a rigid body is that body's
+      Vec3 moved = p.position[i] - scratch[i];
+      if (ct.other.valid()) {
+        const std::size_t o = ct.other.index();
+        moved -= wo > 0.0 ? Vec3(p.position[o] - scratch[o]) : Vec3(p.velocity[o] * h);
+      }
+      const Vec3 slide = moved - moved.dot(n) * n;
+      const double length = slide.norm();
+      if (length < 1e-15) continue;
+      const Vec3 undo = slide * std::min(1.0, ct.friction * deficit / length);
+      const Vec3 di = -undo * (wp / (wp + wo));
+      p.position[i] += di;
+      if (wo > 0.0) p.position[ct.other.index()] += undo * (wo / (wp + wo));
+      else if (ct.otherFixed && !in.contactImpulses.empty()) in.contactImpulses[k] += p.mass[i] * di / h;
     }
     // update velocities
     for (const ParticleId id : in.particles) {
       const std::size_t i = id.index();
       if (p.invMass[i] == 0.0) continue;
       p.velocity[i] = (p.position[i] - scratch[i] - push_[i]) / h;
-      const double vn = p.velocity[i].dot(pushNormal_[i]);
-      if (vn < 0.0) {
-        p.velocity[i] -= vn * pushNormal_[i];
-        if (pushContact_[i] >= 0 && !in.contactImpulses.empty())
-          in.contactImpulses[static_cast<std::size_t>(pushContact_[i])] -= p.mass[i] * vn * pushNormal_[i];
-      }
       push_[i] = Vec3::Zero();
-      pushNormal_[i] = Vec3::Zero();
-      pushContact_[i] = -1;
+    }
+    // touching contacts stop the relative motion into them (inelastic, momentum-conserving; what a rigid
+    // body's particle takes is reported so that the body can be given it)
+    for (std::size_t k = 0; k < in.contacts.size(); ++k) {
+      if (!touching_[k]) continue;
+      const DeformableContact& ct = in.contacts[k];
+      const std::size_t i = ct.p.index();
+      const Vec3& n = touchNormal_[k];
+      const double wp = p.invMass[i];
+      const bool otherMoves = ct.other.valid() && !ct.otherFixed && p.invMass[ct.other.index()] > 0.0;
+      const double wo = otherMoves ? p.invMass[ct.other.index()] : 0.0;
+      const Vec3 vo = ct.other.valid() ? p.velocity[ct.other.index()] : Vec3::Zero();
+      const double vn = (p.velocity[i] - vo).dot(n);
+      if (vn >= 0.0) continue;
+      // impulse along n on particle p (and its opposite on the other)
+      const double j = -vn / (wp + wo);
+      p.velocity[i] += wp * j * n;
+      if (otherMoves) p.velocity[ct.other.index()] -= wo * j * n;
+      else if (ct.otherFixed && !in.contactImpulses.empty()) in.contactImpulses[k] += j * n;
     }
   }
 }

@@ -31,6 +31,7 @@ struct DeformableContact {
   /// `other` is a particle of a rigid or static body: it stays where its body's pose puts it (the contact
   /// solver already exchanged momentum with the body), only `p` is moved
   bool otherFixed = false;
+  double friction = 0.0;  ///< Coulomb coefficient, applied to the pair's sliding within each substep
 };
 
 struct DeformableStepInput {
@@ -46,7 +47,7 @@ struct DeformableStepInput {
   /// any substep (rods: their constraint force; springs: k |stretch|).
   std::span<double> forces;
   /// Contacts kept in every substep: a contact's position correction is left out of the velocity, and the
-  /// velocity of its particle into it is removed.
+  /// relative velocity of its particles into it is removed (inelastically, conserving momentum).
   std::span<const DeformableContact> contacts;
   /// If not empty (sized like `contacts`): the impulse [N s] each contact with a fixed other particle gave
   /// its deformable particle by stopping it; the rigid body of the other particle owes the opposite one.
@@ -55,8 +56,8 @@ struct DeformableStepInput {
 
 /// Buffers kept between steps (sized once).
 struct DeformableScratch {
-  std::vector<Vec3> previous, push, pushNormal;
-  std::vector<std::int32_t> pushContact;
+  std::vector<Vec3> previous, push, touchNormal;
+  std::vector<std::uint8_t> touching;
 };
 
 /// Advances the listed particles by one step.

@@ -443,9 +443,9 @@ void World::detectCollisions() {
 }
 
 void World::integrateVelocities() {
+  // deformable particles get gravity a substep at a time in integratePositions, where their contacts hold
+  // them up as position constraints; the contact solver sees them as they are (impacts, not their weight)
   for (const BodyId id : rigidBodies_) integrateRigidVelocity(bodies_.state[id.index()], settings_.gravity, settings_.dt);
-  for (const ParticleId p : deformableParticles_)
-    if (particles_.invMass[p.index()] > 0.0) particles_.velocity[p.index()] += settings_.gravity * settings_.dt;
 }
 
 std::uint32_t World::solverIndex(ParticleId p) {
@@ -480,12 +480,9 @@ void World::buildContactPoints() {
   const ContactSet& cs = contacts_;
   const PatchSet& ps = patches_;
   auto combined = [&](ParticleId a, ParticleId b, PlaneId plane, double& friction, double& restitution) {
-    const Material& ma = materials_[bodies_.info[particles_.body[a.index()].index()].material.index()];
-    const MaterialId mbId = plane.valid() ? planes_[plane.index()].material
-                                          : bodies_.info[particles_.body[b.index()].index()].material;
-    const Material& mb = materials_[mbId.index()];
-    friction = std::sqrt(ma.friction * mb.friction);
-    restitution = std::max(ma.restitution, mb.restitution);
+    const auto [ma, mb] = contactMaterials(a, b, plane);
+    friction = std::sqrt(ma->friction * mb->friction);
+    restitution = std::max(ma->restitution, mb->restitution);
   };
   auto arm = [&](ParticleId p, const Vec3& point) -> Vec3 {
     const BodyId b = particles_.body[p.index()];
@@ -563,6 +560,12 @@ void World::buildContactPoints() {
   }
 }
 
+std::pair<const Material*, const Material*> World::contactMaterials(ParticleId a, ParticleId b, PlaneId plane) const {
+  const Material& ma = materials_[bodies_.info[particles_.body[a.index()].index()].material.index()];
+  const MaterialId mb = plane.valid() ? planes_[plane.index()].material : bodies_.info[particles_.body[b.index()].index()].material;
+  return {&ma, &materials_[mb.index()]};
+}
+
 void World::solveContacts() {
   // solver bodies of this step: only those in contact
   for (const BodyId b : solverBodyOwner_)
@@ -617,12 +620,8 @@ void World::integratePositions() {
   DeformableStepInput in;
   in.particles = deformableParticles_;
   in.connectors = deformableConnectors_;
-  // gravity went into the velocities before the contact solver (which must see it); the substeps take it
-  // back out and apply it a substep at a time, so a hanging or resting body sees its weight in every
-  // substep instead of one kick per step
+  // gravity a substep at a time: a hanging or resting body feels its weight in every substep
   in.gravity = settings_.gravity;
-  for (const ParticleId p : deformableParticles_)
-    if (particles_.invMass[p.index()] > 0.0) particles_.velocity[p.index()] -= settings_.gravity * dt;
   in.dt = dt;
   in.substeps = settings_.substeps;
   bool shifted = false;
@@ -646,16 +645,18 @@ void World::integratePositions() {
     for (std::uint32_t k = patch.first; k < patch.first + patch.count; ++k) {
       const ParticleContact& c = contacts_.contacts[patches_.contacts[k]];
       const double ra = particles_.radius[c.a.index()];
+      const auto [ma, mb] = contactMaterials(c.a, c.b, patch.plane);
+      const double mu = std::sqrt(ma->friction * mb->friction);
       if (patch.plane.valid()) {
         const Plane& pl = planes_[patch.plane.index()];
-        deformableContacts_.push_back({c.a, ParticleId{}, pl.normal, pl.offset + ra * (1.0 - settings_.slop)});
+        deformableContacts_.push_back({c.a, ParticleId{}, pl.normal, pl.offset + ra * (1.0 - settings_.slop), false, false, mu});
         continue;
       }
       const double sep = (ra + particles_.radius[c.b.index()]) * (1.0 - settings_.slop);
       // written for the deformable particle (the normal points from A to B)
       const bool line = !patch.validated;
-      if (aDef) deformableContacts_.push_back({c.a, c.b, -patch.normal, sep, line, !bDef});
-      else deformableContacts_.push_back({c.b, c.a, patch.normal, sep, line, true});
+      if (aDef) deformableContacts_.push_back({c.a, c.b, -patch.normal, sep, line, !bDef, mu});
+      else deformableContacts_.push_back({c.b, c.a, patch.normal, sep, line, true, mu});
     }
   }
   in.contacts = deformableContacts_;

