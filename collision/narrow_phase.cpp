@@ -59,24 +59,214 @@ Vec3 cachedWorldNormal(const ParticleStore& particles, const BodyStore& bodies, 
   return bodies.state[particles.body[p.index()].index()].orientation * normals[k];
 }
 
-Vec3 NarrowPhase::worldNormal(const NarrowPhaseInput& in, ParticleId p) const {
+Vec3 NarrowPhase::worldNormal(const NarrowPhaseInput& in, ParticleId p) {
   return cachedWorldNormal(*in.particles, *in.bodies, *in.normals, p);
 }
 
-void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out) {
+void NarrowPhase::clearCache() { cache_.clear(); }
+
+bool NarrowPhase::cacheable(const NarrowPhaseInput& in, const ContactGroup& g) {
+  if (g.a == g.b) return false;  // self-contact of a deformable body
+  if (in.bodies->info[g.a.index()].kind == BodyKind::Deformable) return false;
+  return g.plane.valid() || in.bodies->info[g.b.index()].kind != BodyKind::Deformable;
+}
+
+NarrowPhase::GroupKey NarrowPhase::keyOf(const ContactGroup& g) {
+  return g.plane.valid() ? GroupKey{1, g.a.value, g.plane.value} : GroupKey{0, g.a.value, g.b.value};
+}
+
+void NarrowPhase::relativePose(const NarrowPhaseInput& in, const ContactGroup& g, Quat& rotation, Vec3& position) {
+  const BodyState& a = in.bodies->state[g.a.index()];
+  if (g.plane.valid()) {
+    rotation = a.orientation;
+    position = a.position;
+    return;
+  }
+  const BodyState& b = in.bodies->state[g.b.index()];
+  rotation = a.orientation.conjugate() * b.orientation;
+  position = a.orientation.conjugate() * (b.position - a.position);
+}
+
+bool NarrowPhase::reusable(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
+                           const CachedGroup& c) const {
+  if (c.pairCount != g.count) return false;
+  const ParticleContact* contacts = set.contacts.data() + g.first;
+  const auto* pairs = cache_.pairs.data() + c.pairFirst;
+  for (std::uint32_t i = 0; i < g.count; ++i)
+    if (contacts[i].a != pairs[i].first || contacts[i].b != pairs[i].second) return false;
+  // a plane's patches depend on the contacts alone (the normal is the plane's)
+  if (g.plane.valid()) return true;
+  Quat rotation;
+  Vec3 position;
+  relativePose(in, g, rotation, position);
+  const double turned = 2.0 * (c.relRotation.conjugate() * rotation).vec().norm();
+  const ParticleStore& p = *in.particles;
+  const double rsum = p.radius[contacts[0].a.index()] + p.radius[contacts[0].b.index()];
+  return turned < settings_.reuseAngle && (position - c.relPosition).norm() < settings_.reuseShift * rsum;
+}
+
+void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedGroup& c,
+                        Worker& w, PatchSet& out) const {
+  const ParticleStore& p = *in.particles;
+  const Quat& qa = in.bodies->state[g.a.index()].orientation;
+  const bool plane = g.plane.valid();
+  const std::size_t patchBegin = w.patches.size();
+  std::uint32_t k = c.pairFirst;  // position in cache order (parallel to pairs)
+  for (std::uint32_t j = 0; j < c.patchCount; ++j) {
+    const CachedPatch& cp = cache_.patches[c.patchFirst + j];
+    ContactPatch patch;
+    patch.a = g.a;
+    patch.b = g.b;
+    patch.plane = g.plane;
+    patch.normal = plane ? cp.normal : Vec3(qa * cp.normal);
+    patch.margin = cp.margin;
+    patch.planeCase = cp.planeCase;
+    patch.source = cp.source;
+    patch.validated = cp.validated;
+    patch.lookAhead = cp.lookAhead;
+    patch.first = static_cast<std::uint32_t>(w.contacts.size());
+    patch.count = cp.count;
+    // depths along the normal and the deepest point, from the current positions
+    std::uint32_t deepest = g.first + cache_.order[k];
+    patch.depth = 0.0;
+    for (std::uint32_t i = 0; i < cp.count; ++i, ++k) {
+      const std::uint32_t ci = g.first + cache_.order[k];
+      w.contacts.push_back(ci);
+      const ParticleContact& ct = set.contacts[ci];
+      if (ct.depth > set.contacts[deepest].depth) deepest = ci;
+      const double d = plane ? ct.depth
+                             : p.radius[ct.a.index()] + p.radius[ct.b.index()] -
+                                   patch.normal.dot(p.position[ct.b.index()] - p.position[ct.a.index()]);
+      out.depthAlongNormal[ci] = d;
+      patch.depth = std::max(patch.depth, d);
+    }
+    patch.point = set.contacts[deepest].point;
+    ++w.stats.patches;
+    ++w.stats.reused;
+    ++w.stats.byCase[static_cast<std::size_t>(patch.planeCase)];
+    if (!patch.validated) ++w.stats.unvalidated;
+    w.patches.push_back(patch);
+  }
+  remember(in, set, g, patchBegin, w);
+  // keep the pose of the computation, not this step's: the tolerance bounds the total drift
+  w.cache.groups.back().relRotation = c.relRotation;
+  w.cache.groups.back().relPosition = c.relPosition;
+}
+
+void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
+                           std::size_t patchBegin, Worker& w) const {
+  CachedGroup c;
+  c.key = keyOf(g);
+  relativePose(in, g, c.relRotation, c.relPosition);
+  c.pairFirst = static_cast<std::uint32_t>(w.cache.pairs.size());
+  c.pairCount = g.count;
+  c.patchFirst = static_cast<std::uint32_t>(w.cache.patches.size());
+  c.patchCount = static_cast<std::uint32_t>(w.patches.size() - patchBegin);
+  for (std::uint32_t i = 0; i < g.count; ++i) {
+    const ParticleContact& ct = set.contacts[g.first + i];
+    w.cache.pairs.emplace_back(ct.a, ct.b);
+  }
+  const Quat toA = in.bodies->state[g.a.index()].orientation.conjugate();
+  for (std::size_t j = patchBegin; j < w.patches.size(); ++j) {
+    const ContactPatch& patch = w.patches[j];
+    CachedPatch cp;
+    cp.normal = g.plane.valid() ? patch.normal : Vec3(toA * patch.normal);
+    cp.margin = patch.margin;
+    cp.count = patch.count;
+    cp.planeCase = patch.planeCase;
+    cp.source = patch.source;
+    cp.validated = patch.validated;
+    cp.lookAhead = patch.lookAhead;
+    w.cache.patches.push_back(cp);
+    for (std::uint32_t i = patch.first; i < patch.first + patch.count; ++i) w.cache.order.push_back(w.contacts[i] - g.first);
+  }
+  w.cache.groups.push_back(c);
+}
+
+void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out, ThreadPool* pool) {
   out.patches.clear();
   out.contacts.clear();
   out.stats = NarrowPhaseStats{};
   out.depthAlongNormal.assign(contacts.contacts.size(), 0.0);
   out.patchOfContact.assign(contacts.contacts.size(), 0);
-  if (mark_.size() < in.particles->size()) mark_.resize(in.particles->size(), 0);
-  for (const ContactGroup& g : contacts.groups) makePatches(in, contacts, g, out);
+  const std::size_t groups = contacts.groups.size();
+  const std::size_t workers = pool ? static_cast<std::size_t>(pool->workers()) : 1;
+  if (workers_.size() < workers) workers_.resize(workers);
+  for (std::size_t k = 0; k < workers; ++k) {
+    Worker& w = workers_[k];
+    w.patches.clear();
+    w.contacts.clear();
+    w.stats = NarrowPhaseStats{};
+    w.cache.clear();
+    if (w.mark.size() < in.particles->size()) w.mark.resize(in.particles->size(), 0);
+  }
+  // each group's patches of the last run, if it may take them over
+  match_.assign(groups, -1);
+  weights_.resize(groups);
+  for (std::size_t gi = 0; gi < groups; ++gi) {
+    const ContactGroup& g = contacts.groups[gi];
+    weights_[gi] = g.count;
+    if (!settings_.reuse || !cacheable(in, g)) continue;
+    const GroupKey key = keyOf(g);
+    const auto it = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), key,
+                                     [](const CachedGroup& c, const GroupKey& k) { return c.key < k; });
+    if (it != cache_.groups.end() && it->key == key && reusable(in, contacts, g, *it))
+      match_[gi] = static_cast<std::int32_t>(it - cache_.groups.begin());
+  }
+  const auto work = [&](int worker, std::size_t begin, std::size_t end) {
+    Worker& w = workers_[static_cast<std::size_t>(worker)];
+    for (std::size_t gi = begin; gi < end; ++gi) {
+      const ContactGroup& g = contacts.groups[gi];
+      if (match_[gi] >= 0) {
+        reuse(in, contacts, g, cache_.groups[static_cast<std::size_t>(match_[gi])], w, out);
+        continue;
+      }
+      const std::size_t patchBegin = w.patches.size();
+      makePatches(in, contacts, g, w, out);
+      if (settings_.reuse && cacheable(in, g)) remember(in, contacts, g, patchBegin, w);
+    }
+  };
+  if (pool) pool->run(groups, work, &weights_);
+  else work(0, 0, groups);
+  // merge in worker order, which is group order
+  cache_.clear();
+  for (std::size_t k = 0; k < workers; ++k) {
+    Worker& w = workers_[k];
+    const auto patchBase = static_cast<std::uint32_t>(out.patches.size());
+    const auto contactBase = static_cast<std::uint32_t>(out.contacts.size());
+    for (std::size_t j = 0; j < w.patches.size(); ++j) {
+      ContactPatch patch = w.patches[j];
+      patch.first += contactBase;
+      for (std::uint32_t i = patch.first - contactBase; i < patch.first - contactBase + patch.count; ++i)
+        out.patchOfContact[w.contacts[i]] = patchBase + static_cast<std::uint32_t>(j);
+      out.patches.push_back(patch);
+    }
+    out.contacts.insert(out.contacts.end(), w.contacts.begin(), w.contacts.end());
+    out.stats += w.stats;
+    const auto pairBase = static_cast<std::uint32_t>(cache_.pairs.size());
+    const auto cachedPatchBase = static_cast<std::uint32_t>(cache_.patches.size());
+    for (CachedGroup c : w.cache.groups) {
+      c.pairFirst += pairBase;
+      c.patchFirst += cachedPatchBase;
+      cache_.groups.push_back(c);
+    }
+    cache_.pairs.insert(cache_.pairs.end(), w.cache.pairs.begin(), w.cache.pairs.end());
+    cache_.order.insert(cache_.order.end(), w.cache.order.begin(), w.cache.order.end());
+    cache_.patches.insert(cache_.patches.end(), w.cache.patches.begin(), w.cache.patches.end());
+  }
+  // lookups need the keys in order (they are, as groups come sorted, but a caller may order them otherwise)
+  if (!std::is_sorted(cache_.groups.begin(), cache_.groups.end(),
+                      [](const CachedGroup& x, const CachedGroup& y) { return x.key < y.key; }))
+    cache_.clear();
 }
 
-void NarrowPhase::makePatches(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, PatchSet& out) {
+void NarrowPhase::makePatches(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, Worker& w,
+                              PatchSet& out) const {
   const std::uint32_t m = g.count;
-  parent_.resize(m);
-  std::iota(parent_.begin(), parent_.end(), 0u);
+  std::vector<std::uint32_t>& parent = w.parent;
+  std::vector<std::uint32_t>& order = w.order;
+  parent.resize(m);
+  std::iota(parent.begin(), parent.end(), 0u);
   const ParticleContact* c = set.contacts.data() + g.first;
   const bool plane = g.plane.valid();
   auto near = [&](ParticleId x, ParticleId y) { return x == y || in.finder->connected(x, y); };
@@ -94,31 +284,29 @@ void NarrowPhase::makePatches(const NarrowPhaseInput& in, const ContactSet& set,
         const auto j = static_cast<std::uint32_t>(cj - c);
         // neighbours on both sides, facing roughly the same way (so the floor of a slot and its walls,
         // which a peg may touch or nearly touch at once, stay separate patches)
-        if (j != i && (plane || near(c[i].b, cj->b)) && c[i].normal.dot(cj->normal) > 0.2) unite(parent_, i, j);
+        if (j != i && (plane || near(c[i].b, cj->b)) && c[i].normal.dot(cj->normal) > 0.2) unite(parent, i, j);
       }
     };
     visit(c[i].a);
     for (const ParticleId n : in.finder->neighbours(c[i].a)) visit(n);
   }
   // patches in the order of their first contact
-  order_.resize(m);
-  std::iota(order_.begin(), order_.end(), 0u);
-  for (std::uint32_t i = 0; i < m; ++i) parent_[i] = findRoot(parent_, i);
-  std::stable_sort(order_.begin(), order_.end(), [&](std::uint32_t x, std::uint32_t y) { return parent_[x] < parent_[y]; });
+  order.resize(m);
+  std::iota(order.begin(), order.end(), 0u);
+  for (std::uint32_t i = 0; i < m; ++i) parent[i] = findRoot(parent, i);
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t x, std::uint32_t y) { return parent[x] < parent[y]; });
   std::uint32_t k = 0;
   while (k < m) {
     ContactPatch patch;
     patch.a = g.a;
     patch.b = g.b;
     patch.plane = g.plane;
-    patch.first = static_cast<std::uint32_t>(out.contacts.size());
-    const std::uint32_t root = parent_[order_[k]];
-    for (; k < m && parent_[order_[k]] == root; ++k) out.contacts.push_back(g.first + order_[k]);
-    patch.count = static_cast<std::uint32_t>(out.contacts.size()) - patch.first;
-    solvePatch(in, set, patch, out);
-    for (std::uint32_t i = patch.first; i < patch.first + patch.count; ++i)
-      out.patchOfContact[out.contacts[i]] = static_cast<std::uint32_t>(out.patches.size());
-    out.patches.push_back(patch);
+    patch.first = static_cast<std::uint32_t>(w.contacts.size());
+    const std::uint32_t root = parent[order[k]];
+    for (; k < m && parent[order[k]] == root; ++k) w.contacts.push_back(g.first + order[k]);
+    patch.count = static_cast<std::uint32_t>(w.contacts.size()) - patch.first;
+    solvePatch(in, set, patch, w, out);
+    w.patches.push_back(patch);
   }
 }
 
@@ -150,7 +338,7 @@ void NarrowPhase::describeSide(const std::vector<Vec3>& points, double meanRadiu
   if (!side.collinear) side.face = eig.eigenvectors().col(0);
 }
 
-PlaneCase NarrowPhase::classify(const NarrowPhaseInput& in, const Side& a, const Side& b) const {
+PlaneCase NarrowPhase::classify(const NarrowPhaseInput& in, const Side& a, const Side& b) {
   const bool aSmall = a.particles.size() <= b.particles.size();
   const Side& s = aSmall ? a : b;
   const Side& l = aSmall ? b : a;
@@ -172,40 +360,41 @@ PlaneCase NarrowPhase::classify(const NarrowPhaseInput& in, const Side& a, const
   return PlaneCase::FaceFace;
 }
 
-void NarrowPhase::ring(const NarrowPhaseInput& in, std::span<const ParticleId> seeds, int k, std::vector<ParticleId>& out) {
+void NarrowPhase::ring(const NarrowPhaseInput& in, std::span<const ParticleId> seeds, int k, std::vector<ParticleId>& out,
+                       Worker& w) {
   out.clear();
-  if (++stamp_ == 0) {  // wrapped: clear the marks
-    std::fill(mark_.begin(), mark_.end(), 0u);
-    stamp_ = 1;
+  if (++w.stamp == 0) {  // wrapped: clear the marks
+    std::fill(w.mark.begin(), w.mark.end(), 0u);
+    w.stamp = 1;
   }
-  frontier_.clear();
+  w.frontier.clear();
   for (const ParticleId s : seeds) {
-    if (mark_[s.index()] == stamp_) continue;
-    mark_[s.index()] = stamp_;
+    if (w.mark[s.index()] == w.stamp) continue;
+    w.mark[s.index()] = w.stamp;
     out.push_back(s);
-    frontier_.push_back(s);
+    w.frontier.push_back(s);
   }
   for (int r = 0; r < k; ++r) {
-    next_.clear();
-    for (const ParticleId p : frontier_)
+    w.next.clear();
+    for (const ParticleId p : w.frontier)
       for (const ParticleId n : in.finder->neighbours(p)) {
-        if (mark_[n.index()] == stamp_) continue;
-        mark_[n.index()] = stamp_;
+        if (w.mark[n.index()] == w.stamp) continue;
+        w.mark[n.index()] = w.stamp;
         out.push_back(n);
-        next_.push_back(n);
+        w.next.push_back(n);
       }
-    std::swap(frontier_, next_);
+    std::swap(w.frontier, w.next);
   }
 }
 
 bool NarrowPhase::lookAhead(const NarrowPhaseInput& in, ParticleId a, ParticleId b, std::vector<Vec3>& pointsA,
-                            std::vector<Vec3>& pointsB, Vec3& contactDifference) {
+                            std::vector<Vec3>& pointsB, Vec3& contactDifference, Worker& w) const {
   const ParticleStore& p = *in.particles;
   const BodyStore& bodies = *in.bodies;
   const ParticleId seedA[1] = {a};
   const ParticleId seedB[1] = {b};
-  ring(in, seedA, 1, aheadA_);
-  ring(in, seedB, 1, aheadB_);
+  ring(in, seedA, 1, w.aheadA, w);
+  ring(in, seedB, 1, w.aheadB, w);
   const Vec3 xa = p.position[a.index()], xb = p.position[b.index()];
   Vec3 n = xb - xa;
   if (n.norm() < 1e-12) return false;
@@ -222,47 +411,47 @@ bool NarrowPhase::lookAhead(const NarrowPhaseInput& in, ParticleId a, ParticleId
     if (info.kind == BodyKind::Static) return x;
     if (info.kind == BodyKind::Deformable) return x + p.velocity[q.index()] * tau;
     const BodyState& s = bodies.state[body.index()];
-    const Vec3 w = s.angularVelocity * tau;
-    const double angle = w.norm();
+    const Vec3 turn = s.angularVelocity * tau;
+    const double angle = turn.norm();
     const Vec3 arm = x - s.position;
-    const Vec3 turned = angle > 1e-15 ? Vec3(Eigen::AngleAxisd(angle, w / angle) * arm) : arm;
+    const Vec3 turned = angle > 1e-15 ? Vec3(Eigen::AngleAxisd(angle, turn / angle) * arm) : arm;
     return s.position + s.linearVelocity * tau + turned;
   };
 
   for (int k = 1; k <= settings_.lookAheadSteps; ++k) {
     const double shift = k * delta;
     const bool moving = approach > 0.0 && shift / approach <= 8.0 * in.dt;
-    aheadPosA_.resize(aheadA_.size());
-    aheadPosB_.resize(aheadB_.size());
-    for (std::size_t i = 0; i < aheadA_.size(); ++i)
-      aheadPosA_[i] = moving ? predict(aheadA_[i], shift / approach) : p.position[aheadA_[i].index()];
-    for (std::size_t j = 0; j < aheadB_.size(); ++j)
-      aheadPosB_[j] = moving ? predict(aheadB_[j], shift / approach) : Vec3(p.position[aheadB_[j].index()] - n * shift);
+    w.aheadPosA.resize(w.aheadA.size());
+    w.aheadPosB.resize(w.aheadB.size());
+    for (std::size_t i = 0; i < w.aheadA.size(); ++i)
+      w.aheadPosA[i] = moving ? predict(w.aheadA[i], shift / approach) : p.position[w.aheadA[i].index()];
+    for (std::size_t j = 0; j < w.aheadB.size(); ++j)
+      w.aheadPosB[j] = moving ? predict(w.aheadB[j], shift / approach) : Vec3(p.position[w.aheadB[j].index()] - n * shift);
     // touching pairs between the two small neighbourhoods
     pointsA.clear();
     pointsB.clear();
     std::size_t found = 0;
     Vec3 firstPoint = Vec3::Zero();
     contactDifference = Vec3::Zero();
-    sideA_.particles.clear();
-    sideB_.particles.clear();
-    for (std::size_t i = 0; i < aheadA_.size(); ++i)
-      for (std::size_t j = 0; j < aheadB_.size(); ++j) {
-        const double rs = p.radius[aheadA_[i].index()] + p.radius[aheadB_[j].index()];
-        const Vec3 d = aheadPosB_[j] - aheadPosA_[i];
-        if (!(d.squaredNorm() < rs * rs) || aheadA_[i] == aheadB_[j]) continue;
-        if (p.body[aheadA_[i].index()] == p.body[aheadB_[j].index()] && in.finder->connected(aheadA_[i], aheadB_[j])) continue;
-        const Vec3 point = aheadPosA_[i] + d * (p.radius[aheadA_[i].index()] / rs);
+    w.sideA.particles.clear();
+    w.sideB.particles.clear();
+    for (std::size_t i = 0; i < w.aheadA.size(); ++i)
+      for (std::size_t j = 0; j < w.aheadB.size(); ++j) {
+        const double rs = p.radius[w.aheadA[i].index()] + p.radius[w.aheadB[j].index()];
+        const Vec3 d = w.aheadPosB[j] - w.aheadPosA[i];
+        if (!(d.squaredNorm() < rs * rs) || w.aheadA[i] == w.aheadB[j]) continue;
+        if (p.body[w.aheadA[i].index()] == p.body[w.aheadB[j].index()] && in.finder->connected(w.aheadA[i], w.aheadB[j])) continue;
+        const Vec3 point = w.aheadPosA[i] + d * (p.radius[w.aheadA[i].index()] / rs);
         if (found == 0) firstPoint = point;
         else if (found == 1) contactDifference = point - firstPoint;
         ++found;
-        if (std::find(sideA_.particles.begin(), sideA_.particles.end(), aheadA_[i]) == sideA_.particles.end()) {
-          sideA_.particles.push_back(aheadA_[i]);
-          pointsA.push_back(aheadPosA_[i]);
+        if (std::find(w.sideA.particles.begin(), w.sideA.particles.end(), w.aheadA[i]) == w.sideA.particles.end()) {
+          w.sideA.particles.push_back(w.aheadA[i]);
+          pointsA.push_back(w.aheadPosA[i]);
         }
-        if (std::find(sideB_.particles.begin(), sideB_.particles.end(), aheadB_[j]) == sideB_.particles.end()) {
-          sideB_.particles.push_back(aheadB_[j]);
-          pointsB.push_back(aheadPosB_[j]);
+        if (std::find(w.sideB.particles.begin(), w.sideB.particles.end(), w.aheadB[j]) == w.sideB.particles.end()) {
+          w.sideB.particles.push_back(w.aheadB[j]);
+          pointsB.push_back(w.aheadPosB[j]);
         }
       }
     if (found >= 2) return true;
@@ -272,11 +461,12 @@ bool NarrowPhase::lookAhead(const NarrowPhaseInput& in, ParticleId a, ParticleId
 
 void NarrowPhase::addCandidates(const NarrowPhaseInput& in, const Side& a, const Side& b, const std::vector<Vec3>& pointsA,
                                 const std::vector<Vec3>& pointsB, const Vec3& contactDifference, PlaneCase c, bool bIsPlane,
-                                const Plane* plane) {
-  candidates_.clear();
+                                const Plane* plane, Worker& w) const {
+  std::vector<Candidate>& cands = w.candidates;
+  cands.clear();
   auto add = [&](const Vec3& v, NormalSource s) {
     const double len = v.norm();
-    if (len > 1e-9) candidates_.push_back({v / len, s});
+    if (len > 1e-9) cands.push_back({v / len, s});
   };
   if (bIsPlane) {
     add(-plane->normal, NormalSource::Plane);
@@ -324,7 +514,7 @@ void NarrowPhase::addCandidates(const NarrowPhaseInput& in, const Side& a, const
       mean += (*in.normals)[k];
       for (const Vec3& f : in.normals->faces(k)) {
         const Vec3 n = sign * Vec3(r * f);
-        const bool seen = std::any_of(candidates_.begin(), candidates_.end(), [&](const Candidate& other) {
+        const bool seen = std::any_of(cands.begin(), cands.end(), [&](const Candidate& other) {
           return other.source == source && (other.normal - n).squaredNorm() < 1e-12;
         });
         if (!seen) add(n, source);
@@ -338,22 +528,23 @@ void NarrowPhase::addCandidates(const NarrowPhaseInput& in, const Side& a, const
   add(b.centroid - a.centroid, NormalSource::CentreLine);
 }
 
-void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, ContactPatch& patch, PatchSet& out) {
+void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, ContactPatch& patch, Worker& w,
+                             PatchSet& out) const {
   const ParticleStore& p = *in.particles;
   const bool isPlane = patch.plane.valid();
-  const std::uint32_t* idx = out.contacts.data() + patch.first;
+  const std::uint32_t* idx = w.contacts.data() + patch.first;
 
   // the sides: unique particles, ascending
-  sideA_.particles.clear();
-  sideB_.particles.clear();
+  w.sideA.particles.clear();
+  w.sideB.particles.clear();
   std::size_t deepest = idx[0];
   for (std::uint32_t i = 0; i < patch.count; ++i) {
     const ParticleContact& c = set.contacts[idx[i]];
-    sideA_.particles.push_back(c.a);
-    if (!isPlane) sideB_.particles.push_back(c.b);
+    w.sideA.particles.push_back(c.a);
+    if (!isPlane) w.sideB.particles.push_back(c.b);
     if (c.depth > set.contacts[deepest].depth) deepest = idx[i];
   }
-  for (auto* v : {&sideA_.particles, &sideB_.particles}) {
+  for (auto* v : {&w.sideA.particles, &w.sideB.particles}) {
     std::sort(v->begin(), v->end());
     v->erase(std::unique(v->begin(), v->end()), v->end());
   }
@@ -367,43 +558,43 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
     if (!ids.empty()) meanRadius /= static_cast<double>(ids.size());
   };
   double ra = 0.0, rb = 0.0;
-  positions(sideA_.particles, pointsA_, ra);
-  positions(sideB_.particles, pointsB_, rb);
+  positions(w.sideA.particles, w.pointsA, ra);
+  positions(w.sideB.particles, w.pointsB, rb);
   const ParticleContact& deep = set.contacts[deepest];
   Vec3 contactDifference = patch.count >= 2 ? Vec3(set.contacts[idx[1]].point - set.contacts[idx[0]].point) : Vec3::Zero();
 
   // real particles of the patch (validation uses them even when a look-ahead supplies the geometry)
-  ringA_.assign(sideA_.particles.begin(), sideA_.particles.end());
-  ringB_.assign(sideB_.particles.begin(), sideB_.particles.end());
+  w.ringA.assign(w.sideA.particles.begin(), w.sideA.particles.end());
+  w.ringB.assign(w.sideB.particles.begin(), w.sideB.particles.end());
 
-  Side& a = sideA_;
-  Side& b = sideB_;
+  Side& a = w.sideA;
+  Side& b = w.sideB;
   if (isPlane) {
-    describeSide(pointsA_, ra, a);
+    describeSide(w.pointsA, ra, a);
     patch.planeCase = PlaneCase::ParticlePlane;
   } else {
     if (patch.count == 1 && settings_.lookAheadSteps > 0) {
-      ++out.stats.lookAheads;
-      patch.lookAhead = lookAhead(in, deep.a, deep.b, pointsA_, pointsB_, contactDifference);
+      ++w.stats.lookAheads;
+      patch.lookAhead = lookAhead(in, deep.a, deep.b, w.pointsA, w.pointsB, contactDifference, w);
       if (!patch.lookAhead) {  // no second contact: back to the real single contact
-        sideA_.particles.assign(1, deep.a);
-        sideB_.particles.assign(1, deep.b);
-        pointsA_.assign(1, p.position[deep.a.index()]);
-        pointsB_.assign(1, p.position[deep.b.index()]);
+        w.sideA.particles.assign(1, deep.a);
+        w.sideB.particles.assign(1, deep.b);
+        w.pointsA.assign(1, p.position[deep.a.index()]);
+        w.pointsB.assign(1, p.position[deep.b.index()]);
       }
     }
-    describeSide(pointsA_, ra, a);
-    describeSide(pointsB_, rb, b);
+    describeSide(w.pointsA, ra, a);
+    describeSide(w.pointsB, rb, b);
     patch.planeCase = classify(in, a, b);
   }
   const Plane* plane = isPlane ? &in.planes[patch.plane.index()] : nullptr;
-  addCandidates(in, a, b, pointsA_, pointsB_, contactDifference, patch.planeCase, isPlane, plane);
+  addCandidates(in, a, b, w.pointsA, w.pointsB, contactDifference, patch.planeCase, isPlane, plane, w);
 
   // validation against the k-ring neighbourhoods of the real patch particles
-  seedsA_.assign(ringA_.begin(), ringA_.end());
-  seedsB_.assign(ringB_.begin(), ringB_.end());
-  ring(in, seedsA_, settings_.validationRings, ringA_);
-  ring(in, seedsB_, settings_.validationRings, ringB_);
+  w.seedsA.assign(w.ringA.begin(), w.ringA.end());
+  w.seedsB.assign(w.ringB.begin(), w.ringB.end());
+  ring(in, w.seedsA, settings_.validationRings, w.ringA, w);
+  ring(in, w.seedsB, settings_.validationRings, w.ringB, w);
   const Vec3 ref = isPlane ? Vec3(-plane->normal) : Vec3(b.centroid - a.centroid);
   const Vec3 fallback = deep.normal;
   const double rsum = p.radius[deep.a.index()] + (isPlane ? 0.0 : p.radius[deep.b.index()]);
@@ -416,7 +607,7 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
   double bestSlack = -std::numeric_limits<double>::infinity();
   bool bestValid = false;
   Candidate best{fallback, NormalSource::CentreLine};
-  for (Candidate& cand : candidates_) {
+  for (Candidate& cand : w.candidates) {
     const Vec3 orient = ref.norm() > 1e-12 ? ref : fallback;
     if (cand.normal.dot(orient) < 0.0) cand.normal = -cand.normal;
     // the patch's own particles always count; a neighbour only if it is interior or its surface faces the
@@ -429,17 +620,17 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
     double slack = std::numeric_limits<double>::infinity();
     double reachA = -std::numeric_limits<double>::infinity();  // farthest A sphere along n
     double reachB = std::numeric_limits<double>::infinity();   // nearest B sphere along n
-    for (std::size_t i = 0; i < ringA_.size(); ++i) {
-      if (!counts(ringA_[i], seedsA_.size(), i, 1.0)) continue;
-      const Vec3& x = p.position[ringA_[i].index()];
+    for (std::size_t i = 0; i < w.ringA.size(); ++i) {
+      if (!counts(w.ringA[i], w.seedsA.size(), i, 1.0)) continue;
+      const Vec3& x = p.position[w.ringA[i].index()];
       slack = std::min(slack, -cand.normal.dot(x - deep.point));
-      reachA = std::max(reachA, cand.normal.dot(x) + p.radius[ringA_[i].index()]);
+      reachA = std::max(reachA, cand.normal.dot(x) + p.radius[w.ringA[i].index()]);
     }
-    for (std::size_t i = 0; i < ringB_.size(); ++i) {
-      if (!counts(ringB_[i], seedsB_.size(), i, -1.0)) continue;
-      const Vec3& x = p.position[ringB_[i].index()];
+    for (std::size_t i = 0; i < w.ringB.size(); ++i) {
+      if (!counts(w.ringB[i], w.seedsB.size(), i, -1.0)) continue;
+      const Vec3& x = p.position[w.ringB[i].index()];
       slack = std::min(slack, cand.normal.dot(x - deep.point));
-      reachB = std::min(reachB, cand.normal.dot(x) - p.radius[ringB_[i].index()]);
+      reachB = std::min(reachB, cand.normal.dot(x) - p.radius[w.ringB[i].index()]);
     }
     // a plane: its surface is the B side
     if (isPlane) reachB = -plane->offset;
@@ -452,15 +643,15 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
       best = cand;
     }
   }
-  out.stats.candidates += candidates_.size();
+  w.stats.candidates += w.candidates.size();
   patch.normal = best.normal;
   patch.source = best.source;
   patch.margin = bestMargin;
   patch.validated = bestValid;
   patch.point = deep.point;
-  if (!patch.validated) ++out.stats.unvalidated;
-  ++out.stats.patches;
-  ++out.stats.byCase[static_cast<std::size_t>(patch.planeCase)];
+  if (!patch.validated) ++w.stats.unvalidated;
+  ++w.stats.patches;
+  ++w.stats.byCase[static_cast<std::size_t>(patch.planeCase)];
 
   // depth of every contact along the patch normal
   patch.depth = 0.0;

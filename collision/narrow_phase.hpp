@@ -20,6 +20,7 @@
 #include "engine/core/body_store.hpp"
 #include "engine/core/particle_store.hpp"
 #include "engine/core/plane.hpp"
+#include "engine/core/thread_pool.hpp"
 
 namespace volpar {
 
@@ -45,6 +46,16 @@ struct NarrowPhaseStats {
   std::size_t candidates = 0;     ///< candidate normals tried
   std::size_t lookAheads = 0;     ///< look-aheads run
   std::size_t unvalidated = 0;    ///< patches without a validated candidate
+  std::size_t reused = 0;         ///< patches taken over from an earlier step (see NarrowPhase)
+  NarrowPhaseStats& operator+=(const NarrowPhaseStats& o) {
+    patches += o.patches;
+    for (std::size_t k = 0; k < kPlaneCaseCount; ++k) byCase[k] += o.byCase[k];
+    candidates += o.candidates;
+    lookAheads += o.lookAheads;
+    unvalidated += o.unvalidated;
+    reused += o.reused;
+    return *this;
+  }
 };
 
 struct PatchSet {
@@ -67,13 +78,26 @@ struct NarrowPhaseInput {
   double dt = 0.0;                        ///< [s], scales the look-ahead
 };
 
+/// Patches and their separating planes for every contact group.
+///
+/// Temporal coherence: the patches of a group between two rigid or static bodies (or a rigid body and a
+/// plane) depend only on the group's contact pairs and the bodies' relative pose. When a group has exactly
+/// the contact pairs it had when its patches were last computed and (for body pairs) the relative pose has
+/// not moved since by more than PlaneSettings::reuseAngle and reuseShift, the patches are taken over: the
+/// normals are carried along in body A's frame, and every contact's depth along its patch normal and each
+/// patch's deepest point are computed afresh. A settled stack or pile then costs almost nothing here.
+///
+/// Groups are independent: with a ThreadPool they are shared among its workers in contiguous ranges and
+/// the results merged in group order, so the output does not depend on the number of threads.
 class NarrowPhase {
  public:
   void setSettings(const PlaneSettings& s) { settings_ = s; }
   [[nodiscard]] const PlaneSettings& settings() const { return settings_; }
 
-  /// Patches and planes for every contact group.
-  void run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out);
+  /// Patches and planes for every contact group. `pool` (optional) shares the groups among threads.
+  void run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out, ThreadPool* pool = nullptr);
+  /// Forgets the patches kept for reuse (the next run computes every patch).
+  void clearCache();
 
  private:
   struct Side {
@@ -88,32 +112,91 @@ class NarrowPhase {
     Vec3 normal;
     NormalSource source;
   };
+  /// What identifies a group from one step to the next: kind 0 = body pair (a, b), 1 = body a and plane b.
+  struct GroupKey {
+    std::uint32_t kind = 0, a = 0, b = 0;
+    friend auto operator<=>(const GroupKey&, const GroupKey&) = default;
+  };
+  /// A group's patches as last computed: normals in A's frame (planes: the world frame).
+  struct CachedPatch {
+    Vec3 normal = Vec3::UnitZ();
+    double margin = 0.0;
+    std::uint32_t count = 0;
+    PlaneCase planeCase = PlaneCase::VertexFace11;
+    NormalSource source = NormalSource::CentreLine;
+    bool validated = false;
+    bool lookAhead = false;
+  };
+  struct CachedGroup {
+    GroupKey key;
+    Quat relRotation = Quat::Identity();  // B's orientation in A's frame when computed
+    Vec3 relPosition = Vec3::Zero();      // B's position in A's frame when computed
+    std::uint32_t pairFirst = 0, pairCount = 0;    // the contact pairs, in cache pairs
+    std::uint32_t patchFirst = 0, patchCount = 0;  // the patches, in cache patches
+  };
+  struct Cache {
+    std::vector<CachedGroup> groups;                            // sorted by key
+    std::vector<std::pair<ParticleId, ParticleId>> pairs;       // per group: its contacts' (a, b)
+    std::vector<std::uint32_t> order;                           // per group: contact order, patch by patch
+    std::vector<CachedPatch> patches;
+    void clear() {
+      groups.clear();
+      pairs.clear();
+      order.clear();
+      patches.clear();
+    }
+  };
 
-  void makePatches(const NarrowPhaseInput& in, const ContactSet& contacts, const ContactGroup& g, PatchSet& out);
-  void solvePatch(const NarrowPhaseInput& in, const ContactSet& contacts, ContactPatch& patch, PatchSet& out);
+  /// Scratch and output of one worker thread.
+  struct Worker {
+    // output for its range of groups, merged in order afterwards
+    std::vector<ContactPatch> patches;
+    std::vector<std::uint32_t> contacts;
+    NarrowPhaseStats stats;
+    Cache cache;
+    // scratch, reused across patches and steps
+    std::vector<std::uint32_t> parent, order;
+    std::vector<Vec3> pointsA, pointsB;
+    Side sideA, sideB;
+    std::vector<Candidate> candidates;
+    std::vector<ParticleId> ringA, ringB, seedsA, seedsB, frontier, next;
+    std::vector<std::uint32_t> mark;
+    std::uint32_t stamp = 0;
+    std::vector<ParticleId> aheadA, aheadB;
+    std::vector<Vec3> aheadPosA, aheadPosB;
+  };
+
+  [[nodiscard]] static bool cacheable(const NarrowPhaseInput& in, const ContactGroup& g);
+  [[nodiscard]] static GroupKey keyOf(const ContactGroup& g);
+  /// The relative pose of B in A's frame (planes: A's own pose).
+  static void relativePose(const NarrowPhaseInput& in, const ContactGroup& g, Quat& rotation, Vec3& position);
+  [[nodiscard]] bool reusable(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
+                              const CachedGroup& c) const;
+  void reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedGroup& c,
+             Worker& w, PatchSet& out) const;
+  void remember(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, std::size_t patchBegin,
+                Worker& w) const;
+  void makePatches(const NarrowPhaseInput& in, const ContactSet& contacts, const ContactGroup& g, Worker& w,
+                   PatchSet& out) const;
+  void solvePatch(const NarrowPhaseInput& in, const ContactSet& contacts, ContactPatch& patch, Worker& w,
+                  PatchSet& out) const;
   void describeSide(const std::vector<Vec3>& points, double meanRadius, Side& side) const;
   void addCandidates(const NarrowPhaseInput& in, const Side& a, const Side& b, const std::vector<Vec3>& pointsA,
                      const std::vector<Vec3>& pointsB, const Vec3& contactDifference, PlaneCase c, bool bIsPlane,
-                     const Plane* plane);
+                     const Plane* plane, Worker& w) const;
   /// k-ring neighbourhood of `seeds` (seeds included) into `out`.
-  void ring(const NarrowPhaseInput& in, std::span<const ParticleId> seeds, int k, std::vector<ParticleId>& out);
+  static void ring(const NarrowPhaseInput& in, std::span<const ParticleId> seeds, int k, std::vector<ParticleId>& out,
+                   Worker& w);
   bool lookAhead(const NarrowPhaseInput& in, ParticleId a, ParticleId b, std::vector<Vec3>& pointsA,
-                 std::vector<Vec3>& pointsB, Vec3& contactDifference);
-  [[nodiscard]] Vec3 worldNormal(const NarrowPhaseInput& in, ParticleId p) const;
-  [[nodiscard]] PlaneCase classify(const NarrowPhaseInput& in, const Side& a, const Side& b) const;
+                 std::vector<Vec3>& pointsB, Vec3& contactDifference, Worker& w) const;
+  [[nodiscard]] static Vec3 worldNormal(const NarrowPhaseInput& in, ParticleId p);
+  [[nodiscard]] static PlaneCase classify(const NarrowPhaseInput& in, const Side& a, const Side& b);
 
   PlaneSettings settings_;
-  // scratch, reused across patches and steps
-  std::vector<std::uint32_t> parent_;
-  std::vector<std::uint32_t> order_;
-  std::vector<Vec3> pointsA_, pointsB_;
-  Side sideA_, sideB_;
-  std::vector<Candidate> candidates_;
-  std::vector<ParticleId> ringA_, ringB_, seedsA_, seedsB_, frontier_, next_;
-  std::vector<std::uint32_t> mark_;
-  std::uint32_t stamp_ = 0;
-  std::vector<ParticleId> aheadA_, aheadB_;
-  std::vector<Vec3> aheadPosA_, aheadPosB_;
+  std::vector<Worker> workers_;
+  Cache cache_;                        // what the last run computed or reused, for the next
+  std::vector<std::int32_t> match_;    // per group of this run: its entry in cache_, or -1
+  std::vector<std::size_t> weights_;   // per group: its contact count (balances the workers)
 };
 
 /// World-frame outward normal of a surface particle from the cache (zero for interior particles).

@@ -84,6 +84,10 @@ void ContactFinder::addBody(BodyId id, const ParticleStore& particles, const Bod
     g.worldFrame = false;
     buildGrid(g, info.particles, particles.local, particles);
   }
+  if (extent_.size() <= id.index()) extent_.resize(id.index() + 1, 0.0);
+  double extent = 0.0;
+  for (const ParticleId p : info.particles) extent = std::max(extent, particles.local[p.index()].norm());
+  extent_[id.index()] = extent;
   adjacencyDirty_ = true;
 }
 
@@ -139,10 +143,11 @@ void ContactFinder::forCells(const BodyGrid& g, const BodyState& s, const Aabb& 
     }
 }
 
-void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, BodyId a, BodyId b,
-                             std::span<const Aabb> boxes, ContactSet& out) const {
-  // the boxes grown by the speculative reach
-  const double grow = margin_ * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius);
+void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, BodyId a, BodyId b,
+                               std::span<const Aabb> boxes, double skin, ContactSet& out,
+                               std::vector<std::pair<ParticleId, ParticleId>>* listed) const {
+  // the boxes grown by the speculative reach (and the skin)
+  const double grow = margin_ * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius) + skin;
   const Aabb boxA = boxes[a.index()].expanded(grow);
   const Aabb boxB = boxes[b.index()].expanded(grow);
   const Aabb overlap{boxA.lo.cwiseMax(boxB.lo), boxA.hi.cwiseMin(boxB.hi)};
@@ -155,13 +160,12 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
   const BodyGrid& go = grids_[other.index()];
   const BodyState& so = bodies.state[other.index()];
   const Mat3 rtOther = so.orientation.toRotationMatrix().transpose();
-  const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
   ParticleContact c;
   forCells(gi, bodies.state[it.index()], overlap.expanded(gi.maxRadius), [&](ParticleId pi) {
     const Vec3& x = p.position[pi.index()];
     // (a hair wider than the largest sum of radii, so rounding in the frame change cannot drop a pair)
-    const double reach = (p.radius[pi.index()] + go.maxRadius) * (1.0 + margin_ + 1e-9);
-    if (!Aabb::sphere(x, p.radius[pi.index()]).overlaps(iterateA ? boxB : boxA)) return;
+    const double reach = (p.radius[pi.index()] + go.maxRadius) * (1.0 + margin_ + 1e-9) + skin;
+    if (!Aabb::sphere(x, p.radius[pi.index()] + skin).overlaps(iterateA ? boxB : boxA)) return;
     // the particle's reach in the other grid's frame
     const Vec3 y = go.worldFrame ? x : Vec3(rtOther * (x - so.position));
     Eigen::Vector3i lo, hi;
@@ -177,13 +181,71 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
         for (std::size_t cell = row + static_cast<std::size_t>(lo.x()); cell <= row + static_cast<std::size_t>(hi.x()); ++cell)
           for (std::uint32_t k = go.cellStart[cell]; k < go.cellStart[cell + 1]; ++k) {
             const ParticleId q = go.items[k];
-            if (iterateA ? touch(p, pi, q, margin_, c) : touch(p, q, pi, margin_, c)) out.contacts.push_back(c);
+            const ParticleId pa = iterateA ? pi : q, pb = iterateA ? q : pi;
+            if (listed) {
+              const double rs = (p.radius[pa.index()] + p.radius[pb.index()]) * (1.0 + margin_) + skin;
+              if ((p.position[pb.index()] - p.position[pa.index()]).squaredNorm() < rs * rs) listed->emplace_back(pa, pb);
+            }
+            if (touch(p, pa, pb, margin_, c)) out.contacts.push_back(c);
           }
       }
   });
+}
+
+void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, BodyId a, BodyId b,
+                             std::span<const Aabb> boxes, Worker& w) const {
+  ContactSet& out = w.out;
+  const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
+  const bool rigid = !grids_[a.index()].worldFrame && !grids_[b.index()].worldFrame;
+  if (!reuse_ || !rigid) {
+    searchPair(p, bodies, a, b, boxes, 0.0, out, nullptr);
+    sortGroup(out, first);
+  } else {
+    // B's pose in A's frame
+    const BodyState& sa = bodies.state[a.index()];
+    const BodyState& sb = bodies.state[b.index()];
+    const Quat relRotation = sa.orientation.conjugate() * sb.orientation;
+    const Vec3 relPosition = sa.orientation.conjugate() * (sb.position - sa.position);
+    const auto it = std::lower_bound(cache_.lists.begin(), cache_.lists.end(), std::make_pair(a.value, b.value),
+                                     [](const PairList& l, const std::pair<std::uint32_t, std::uint32_t>& k) {
+                                       return std::make_pair(l.a, l.b) < k;
+                                     });
+    bool reuse = it != cache_.lists.end() && it->a == a.value && it->b == b.value;
+    if (reuse) {
+      // how far any particle pair's distance can have changed since the list was made
+      const double turned = 2.0 * (it->relRotation.conjugate() * relRotation).vec().norm();
+      reuse = turned * extent_[b.index()] + (relPosition - it->relPosition).norm() < it->skin;
+    }
+    PairList list;
+    list.a = a.value;
+    list.b = b.value;
+    list.first = static_cast<std::uint32_t>(w.cache.pairs.size());
+    if (reuse) {
+      ++w.reused;
+      list.relRotation = it->relRotation;
+      list.relPosition = it->relPosition;
+      list.skin = it->skin;
+      ParticleContact c;
+      for (std::uint32_t k = it->first; k < it->first + it->count; ++k) {
+        const auto& [pa, pb] = cache_.pairs[k];
+        w.cache.pairs.emplace_back(pa, pb);
+        if (touch(p, pa, pb, margin_, c)) out.contacts.push_back(c);
+      }
+    } else {
+      list.relRotation = relRotation;
+      list.relPosition = relPosition;
+      list.skin = 0.25 * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius);
+      w.found.clear();
+      searchPair(p, bodies, a, b, boxes, list.skin, out, &w.found);
+      sortGroup(out, first);
+      std::sort(w.found.begin(), w.found.end());
+      w.cache.pairs.insert(w.cache.pairs.end(), w.found.begin(), w.found.end());
+    }
+    list.count = static_cast<std::uint32_t>(w.cache.pairs.size()) - list.first;
+    w.cache.lists.push_back(list);  // an empty list too: nothing comes within reach until B moves by the skin
+  }
   const auto count = static_cast<std::uint32_t>(out.contacts.size()) - first;
   if (count == 0) return;
-  sortGroup(out, first);
   out.groups.push_back({a, b, PlaneId{}, first, count});
 }
 
@@ -226,11 +288,48 @@ void ContactFinder::planeContacts(const ParticleStore& p, const BodyStore& bodie
 
 void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies, const ConnectorStore& connectors,
                          std::span<const BodyPair> pairs, std::span<const BodyPlanePair> planePairs,
-                         std::span<const Plane> planes, std::span<const Aabb> boxes, ContactSet& out) {
+                         std::span<const Plane> planes, std::span<const Aabb> boxes, ContactSet& out,
+                         ThreadPool* pool) {
   out.clear();
   if (adjacencyDirty_) rebuildAdjacency(particles, connectors);
   for (const BodyId id : deformables_) buildGrid(grids_[id.index()], bodies.info[id.index()].particles, particles.position, particles);
-  for (const BodyPair& pr : pairs) bodyPair(particles, bodies, pr.a, pr.b, boxes, out);
+  // body pairs, shared among the workers in contiguous ranges and merged in order
+  const std::size_t workers = pool ? static_cast<std::size_t>(pool->workers()) : 1;
+  if (workers_.size() < workers) workers_.resize(workers);
+  for (std::size_t k = 0; k < workers; ++k) {
+    workers_[k].out.clear();
+    workers_[k].cache.clear();
+    workers_[k].reused = 0;
+  }
+  const auto work = [&](int worker, std::size_t begin, std::size_t end) {
+    Worker& w = workers_[static_cast<std::size_t>(worker)];
+    for (std::size_t i = begin; i < end; ++i) bodyPair(particles, bodies, pairs[i].a, pairs[i].b, boxes, w);
+  };
+  if (pool) pool->run(pairs.size(), work);
+  else work(0, 0, pairs.size());
+  cache_.clear();
+  reusedPairs_ = 0;
+  for (std::size_t k = 0; k < workers; ++k) {
+    const Worker& w = workers_[k];
+    const auto base = static_cast<std::uint32_t>(out.contacts.size());
+    out.contacts.insert(out.contacts.end(), w.out.contacts.begin(), w.out.contacts.end());
+    for (ContactGroup g : w.out.groups) {
+      g.first += base;
+      out.groups.push_back(g);
+    }
+    const auto pairBase = static_cast<std::uint32_t>(cache_.pairs.size());
+    for (PairList l : w.cache.lists) {
+      l.first += pairBase;
+      cache_.lists.push_back(l);
+    }
+    cache_.pairs.insert(cache_.pairs.end(), w.cache.pairs.begin(), w.cache.pairs.end());
+    reusedPairs_ += w.reused;
+  }
+  // lookups need the lists in key order (body pairs come sorted; if a caller's do not, nothing is reused)
+  if (!std::is_sorted(cache_.lists.begin(), cache_.lists.end(), [](const PairList& x, const PairList& y) {
+        return std::make_pair(x.a, x.b) < std::make_pair(y.a, y.b);
+      }))
+    cache_.clear();
   for (const BodyPlanePair& pp : planePairs) planeContacts(particles, bodies, pp.body, pp.plane, planes[pp.plane.index()], out);
   for (const BodyId id : deformables_) selfContacts(particles, id, out);
 }

@@ -11,6 +11,13 @@
 // every step in the world frame for deformable ones: only the grid cells inside the overlap of the two
 // bodies' boxes are visited, and each particle there looks up the few cells of the other body within its
 // reach. No pair of bodies is searched particle against particle.
+//
+// Temporal coherence: for a pair of rigid or static bodies the search also lists every particle pair
+// within the reach plus a skin of a quarter of the largest sum of radii, with the bodies' relative pose.
+// While B has moved relative to A by less than the skin (rotation x B's extent + translation, a bound on
+// how far any particle pair's distance can have changed), no pair outside the list can have come within
+// reach, so the next steps test only the listed pairs: the same contacts, in the same order, as a fresh
+// search. A resting pile then costs a distance test per listed pair.
 
 #include <cstdint>
 #include <span>
@@ -22,6 +29,7 @@
 #include "engine/core/connector_store.hpp"
 #include "engine/core/particle_store.hpp"
 #include "engine/core/plane.hpp"
+#include "engine/core/thread_pool.hpp"
 
 namespace volpar {
 
@@ -68,10 +76,18 @@ class ContactFinder {
     rebuildAdjacency(particles, connectors);
   }
 
-  /// Finds the contacts of the candidate pairs. `boxes` are the bodies' tight world boxes [B].
+  /// Finds the contacts of the candidate pairs. `boxes` are the bodies' tight world boxes [B]. `pool`
+  /// (optional) shares the body pairs among threads; the result does not depend on it.
   void find(const ParticleStore& particles, const BodyStore& bodies, const ConnectorStore& connectors,
             std::span<const BodyPair> pairs, std::span<const BodyPlanePair> planePairs, std::span<const Plane> planes,
-            std::span<const Aabb> boxes, ContactSet& out);
+            std::span<const Aabb> boxes, ContactSet& out, ThreadPool* pool = nullptr);
+  /// Keep candidate particle pairs of rigid body pairs between steps (on by default; see the class notes).
+  void setReuse(bool reuse) {
+    reuse_ = reuse;
+    if (!reuse) cache_.clear();
+  }
+  /// Body pairs whose candidate lists were reused in the last find().
+  [[nodiscard]] std::size_t reusedPairs() const { return reusedPairs_; }
 
   /// Whether particles a and b (of one body) are joined by an unbroken connector.
   [[nodiscard]] bool connected(ParticleId a, ParticleId b) const;
@@ -100,13 +116,47 @@ class ContactFinder {
   /// Visits the particles of grid body `g` whose cells overlap the world box `box` (expanded by reach).
   template <class F>
   void forCells(const BodyGrid& g, const BodyState& s, const Aabb& box, F&& f) const;
+  /// Candidate particle pairs of a rigid or static body pair: every pair closer than the speculative reach
+  /// plus `skin` when they were listed, with B's pose in A's frame at that time.
+  struct PairList {
+    std::uint32_t a = 0, b = 0;                   // body indices (the key)
+    Quat relRotation = Quat::Identity();
+    Vec3 relPosition = Vec3::Zero();
+    double skin = 0.0;
+    std::uint32_t first = 0, count = 0;           // range in PairCache::pairs
+  };
+  struct PairCache {
+    std::vector<PairList> lists;                  // sorted by (a, b)
+    std::vector<std::pair<ParticleId, ParticleId>> pairs;
+    void clear() {
+      lists.clear();
+      pairs.clear();
+    }
+  };
+  /// Output and cache of one worker thread, merged in order afterwards.
+  struct Worker {
+    ContactSet out;
+    PairCache cache;
+    std::vector<std::pair<ParticleId, ParticleId>> found;
+    std::size_t reused = 0;
+  };
+
+  /// Grid search of a body pair: contacts into `out` (unsorted); with `listed`, every pair within the
+  /// reach plus `skin` into it as well.
+  void searchPair(const ParticleStore& particles, const BodyStore& bodies, BodyId a, BodyId b, std::span<const Aabb> boxes,
+                  double skin, ContactSet& out, std::vector<std::pair<ParticleId, ParticleId>>* listed) const;
   void bodyPair(const ParticleStore& particles, const BodyStore& bodies, BodyId a, BodyId b,
-                std::span<const Aabb> boxes, ContactSet& out) const;
+                std::span<const Aabb> boxes, Worker& w) const;
   void selfContacts(const ParticleStore& particles, BodyId id, ContactSet& out) const;
   void planeContacts(const ParticleStore& particles, const BodyStore& bodies, BodyId id, PlaneId plane,
                      const Plane& pl, ContactSet& out) const;
 
   std::vector<BodyGrid> grids_;  // by body index
+  std::vector<double> extent_;   // by body index: farthest particle centre from the body's origin [m]
+  bool reuse_ = true;
+  PairCache cache_;              // candidate lists of the last find(), for the next
+  std::vector<Worker> workers_;
+  std::size_t reusedPairs_ = 0;
   std::vector<BodyId> deformables_;
   std::vector<std::uint32_t> adjacencyStart_;  // CSR over particles [P + 1]
   std::vector<ParticleId> adjacency_;          // sorted per particle

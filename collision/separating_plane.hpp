@@ -79,6 +79,12 @@ struct PlaneSettings {
   int lookAheadSteps = 4;            ///< look-ahead iterations for single-contact patches
   double lookAheadStep = 0.25;       ///< [-] x radius: relative approach per look-ahead iteration
   bool rawNormals = false;           ///< use each contact's centre-line normal instead (for comparison)
+  /// Take over a rigid group's patches from an earlier step while its contact pairs are the same and the
+  /// relative pose of its bodies has turned by less than reuseAngle [rad] and moved by less than
+  /// reuseShift x (r_a + r_b) since they were computed (collision/narrow_phase.hpp).
+  bool reuse = true;
+  double reuseAngle = 1e-2;
+  double reuseShift = 0.05;
 };
 
 }  // namespace volpar

@@ -46,6 +46,7 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
     summary.candidates += st.candidates;
     summary.lookAheads += st.lookAheads;
     summary.unvalidatedPatches += st.unvalidatedPatches;
+    summary.patchesReused += st.patchesReused;
     ++summary.steps;
     if (hasFlag(status, StepStatus::NonFinite)) {
       failure = Error{"", 0, 0,

@@ -44,6 +44,7 @@ struct RunSummary {
   std::size_t candidates = 0;
   std::size_t lookAheads = 0;
   std::size_t unvalidatedPatches = 0;
+  std::size_t patchesReused = 0;
   std::size_t connectorsBroken = 0;  ///< rods and springs that broke
   std::size_t bodiesCreated = 0;     ///< fragments of bodies that broke apart
   std::size_t normalsRecomputed = 0; ///< cached surface normals recomputed after breaks and strain

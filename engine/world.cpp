@@ -22,6 +22,7 @@ bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y())
 }  // namespace
 
 World::World(const WorldSettings& settings) : settings_(settings) {
+  setThreads(settings.threads);
   narrowPhase_.setSettings(settings.planes);
   SolverSettings solver = settings.solver;
   solver.iterations = settings.solverIterations;
@@ -176,6 +177,12 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   contactFinder_.addBody(id, particles_, bodies_);
   contactsStale_ = true;
   return id;
+}
+
+void World::setThreads(int threads) {
+  settings_.threads = std::max(1, threads);
+  if (settings_.threads == 1) pool_.reset();
+  else if (!pool_ || pool_->workers() != settings_.threads) pool_ = std::make_unique<ThreadPool>(settings_.threads);
 }
 
 StepStatus World::step() {
@@ -417,11 +424,11 @@ void World::detectCollisions() {
   stats_.time.broadphase = secondsSince(t);
 
   t = Clock::now();
-  contactFinder_.find(particles_, bodies_, connectors_, bodyPairs_, planePairs_, planes_, bodyBoxes_, contacts_);
+  contactFinder_.find(particles_, bodies_, connectors_, bodyPairs_, planePairs_, planes_, bodyBoxes_, contacts_, pool_.get());
   stats_.time.particleContacts = secondsSince(t);
 
   t = Clock::now();
-  narrowPhase_.run(narrowPhaseInput(), contacts_, patches_);
+  narrowPhase_.run(narrowPhaseInput(), contacts_, patches_, pool_.get());
   stats_.time.narrowPhase = secondsSince(t);
   const NarrowPhaseStats& np = patches_.stats;
   stats_.patches = np.patches;
@@ -429,6 +436,7 @@ void World::detectCollisions() {
   stats_.candidates = np.candidates;
   stats_.lookAheads = np.lookAheads;
   stats_.unvalidatedPatches = np.unvalidated;
+  stats_.patchesReused = np.reused;
   stats_.bodyPairs = bodyPairs_.size();
   stats_.planePairs = planePairs_.size();
   stats_.contacts = 0;
@@ -458,6 +466,7 @@ std::uint32_t World::solverIndex(ParticleId p) {
   SolverBody sb;
   if (info.kind == BodyKind::Rigid) {
     const BodyState& s = bodies_.state[b.index()];
+    sb.position = s.position;
     sb.v = s.linearVelocity;
     sb.w = s.angularVelocity;
     sb.invMass = s.invMass;
@@ -465,6 +474,7 @@ std::uint32_t World::solverIndex(ParticleId p) {
     solverBodyOwner_.push_back(b);
     solverParticleOwner_.emplace_back();
   } else {
+    sb.position = particles_.position[p.index()];
     sb.v = particles_.velocity[p.index()];
     sb.invMass = particles_.invMass[p.index()];
     solverBodyOwner_.emplace_back();
@@ -586,7 +596,7 @@ void World::solveContacts() {
       for (const ParticleId q : bodies_.info[b.index()].particles) loads_[q.index()] = particles_.mass[q.index()] * settings_.gravity;
   }
   if (contactPoints_.empty()) return;
-  solver_.solve(solverBodies_, contactPoints_, settings_.dt);
+  solver_.solve(solverBodies_, contactPoints_, settings_.dt, pool_.get());
   stats_.warmStarted = solver_.warmStarted();
   if (!breakableRigid_.empty()) {
     const std::span<const Vec3> impulses = solver_.impulses();
@@ -611,12 +621,18 @@ void World::solveContacts() {
 
 void World::integratePositions() {
   const double dt = settings_.dt;
-  for (const BodyId id : rigidBodies_) {
-    const std::uint32_t k = id.index() < bodySolverIndex_.size() ? bodySolverIndex_[id.index()] : ContactPointInput::kFixed;
-    if (k != ContactPointInput::kFixed) integrateRigidPose(bodies_.state[id.index()], dt, solverBodies_[k].pv, solverBodies_[k].pw);
-    else integrateRigidPose(bodies_.state[id.index()], dt);
-    updateRigidParticles(id);
-  }
+  // rigid bodies are independent: shared among the workers
+  const auto rigid = [&](int, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) {
+      const BodyId id = rigidBodies_[i];
+      const std::uint32_t k = id.index() < bodySolverIndex_.size() ? bodySolverIndex_[id.index()] : ContactPointInput::kFixed;
+      if (k != ContactPointInput::kFixed) integrateRigidPose(bodies_.state[id.index()], dt, solverBodies_[k].pv, solverBodies_[k].pw);
+      else integrateRigidPose(bodies_.state[id.index()], dt);
+      updateRigidParticles(id);
+    }
+  };
+  if (pool_) pool_->run(rigidBodies_.size(), rigid);
+  else rigid(0, 0, rigidBodies_.size());
   DeformableStepInput in;
   in.particles = deformableParticles_;
   in.connectors = deformableConnectors_;

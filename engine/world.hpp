@@ -76,6 +76,8 @@ class World {
 
   /// Advances the world by settings().dt.
   StepStatus step();
+  /// Worker threads for later steps (1 = run on the calling thread only); results do not depend on it.
+  void setThreads(int threads);
 
   [[nodiscard]] const WorldSettings& settings() const { return settings_; }
   [[nodiscard]] const ParticleStore& particles() const { return particles_; }
@@ -177,6 +179,7 @@ class World {
   std::vector<double> rodForceScratch_;
   std::vector<double> deformableForces_;                    // [C] XPBD connector forces [N]
   std::vector<BreakEvent> breakEvents_;
+  std::unique_ptr<ThreadPool> pool_;  // null with one thread
   std::vector<Vec3> deformableContactImpulses_;
   std::vector<BodyId> touchedRigid_;
   std::vector<ParticleId> seeds_, ringScratch_;

@@ -28,6 +28,8 @@ struct WorldSettings {
   double contactMargin = 0.25;
   /// Strain of a deformable body's connector [-] beyond which the normals around it are recomputed.
   double normalStrainThreshold = 0.05;
+  /// Worker threads for the step (1 = none). The results do not depend on it: bit for bit the same.
+  int threads = 1;
 };
 
 }  // namespace volpar

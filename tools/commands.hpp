@@ -16,6 +16,7 @@ struct RunArgs {
   double duration = 0.0;     ///< 0: the scene's
   int every = 0;             ///< 0: the scene's
   bool json = false;
+  int threads = 1;
   std::int64_t killAfterFrames = 0;
 };
 

@@ -42,6 +42,7 @@ int run(const RunArgs& args) {
   auto built = buildScene(*desc);
   if (!built) return fail(built.error());
   World& world = built->world;
+  world.setThreads(args.threads);
 
   RunOptions options;
   options.steps = stepsFor(desc->stepCount(), desc->dt, args.steps, args.duration);
@@ -78,6 +79,7 @@ int run(const RunArgs& args) {
         .field("wall_seconds", s.wallSeconds)
         .field("step_seconds", s.stepSeconds)
         .field("steps_per_second", s.stepsPerSecond)
+        .field("threads", world.settings().threads)
         .field("simulated_seconds", world.time())
         .field("energy_start", s.energyStart.total())
         .field("energy_end", s.energyEnd.total())
@@ -92,6 +94,7 @@ int run(const RunArgs& args) {
     j.field("patches", s.patches)
         .field("unvalidated_patches", s.unvalidatedPatches)
         .field("look_aheads", s.lookAheads)
+        .field("patches_reused", s.patchesReused)
         .field("candidates", s.candidates);
     j.begin("patches_by_case");
     for (std::size_t k = 0; k < kPlaneCaseCount; ++k) j.field(planeCaseName(static_cast<PlaneCase>(k)), s.patchesByCase[k]);
@@ -122,9 +125,10 @@ int run(const RunArgs& args) {
     if (s.connectorsBroken > 0 || s.normalsRecomputed > 0)
       std::printf("breakage     %zu connectors broke, %zu fragments made, %zu normals recomputed (%.3f s)\n",
                   s.connectorsBroken, s.bodiesCreated, s.normalsRecomputed, t.breakage);
-    std::printf("planes       %zu patches over the run, %zu unvalidated (%.3g %%), %zu look-aheads, %zu candidates\n",
+    std::printf("planes       %zu patches over the run, %zu unvalidated (%.3g %%), %zu look-aheads, %zu candidates, "
+                "%zu taken over from the step before\n",
                 s.patches, s.unvalidatedPatches, s.patches ? 100.0 * static_cast<double>(s.unvalidatedPatches) / static_cast<double>(s.patches) : 0.0,
-                s.lookAheads, s.candidates);
+                s.lookAheads, s.candidates, s.patchesReused);
     if (s.patches > 0) {
       std::printf("cases       ");
       for (std::size_t k = 0; k < kPlaneCaseCount; ++k)

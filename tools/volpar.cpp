@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
       ->excludes(steps);
   runCmd->add_option("--every", run.every, "Write a frame every K steps (overrides the scene)")->check(CLI::PositiveNumber);
   runCmd->add_flag("--json", run.json, "Print one JSON object with the summary on stdout");
+  runCmd->add_option("--threads", run.threads, "Worker threads for the step (default 1; the results are the same)")
+      ->check(CLI::Range(1, 256));
   // testing aid, not shown in --help
   runCmd->add_option("--kill-after-frames", run.killAfterFrames)->group("");
 

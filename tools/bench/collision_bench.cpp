@@ -366,6 +366,7 @@ struct ContactSearch {
 
   explicit ContactSearch(const volpar::World& w) : world(w) {
     for (std::size_t i = 0; i < w.bodies().size(); ++i) finder.addBody(BodyId(i), w.particles(), w.bodies());
+    finder.setReuse(false);  // every search from scratch, as the peer does
   }
   void find() {
     finder.find(world.particles(), world.bodies(), world.connectors(), world.bodyPairs(), world.planePairs(),

@@ -303,6 +303,7 @@ struct ContactSearch {
 
   explicit ContactSearch(const volpar::World& w) : world(w) {
     for (std::size_t i = 0; i < w.bodies().size(); ++i) finder.addBody(BodyId(i), w.particles(), w.bodies());
+    finder.setReuse(false);  // every search from scratch, as the peer does
   }
   void find() {
     finder.find(world.particles(), world.bodies(), world.connectors(), world.bodyPairs(), world.planePairs(),
@@ -334,7 +335,9 @@ void checkScene(const Scene& s) {
     ContactSearch search(w);
     search.find();
     if (volparPairs(search.set) == v) ++sameSearch;
-    np.setSettings(w.settings().planes);
+    volpar::PlaneSettings planes = w.settings().planes;
+    planes.reuse = false;  // each pose on its own
+    np.setSettings(planes);
     np.run(w.narrowPhaseInput(), w.contacts(), out);
     const auto& ref = w.patches().patches;
     bool same = out.patches.size() == ref.size();
@@ -370,7 +373,9 @@ void perPose(benchmark::State& state, const Scene& s) {
 
 void BM_Planes(benchmark::State& state, const Scene* s) {
   volpar::NarrowPhase np;
-  np.setSettings(s->poses.front().world->settings().planes);
+  volpar::PlaneSettings planes = s->poses.front().world->settings().planes;
+  planes.reuse = false;  // every patch computed (not taken over from the previous pose)
+  np.setSettings(planes);
   volpar::PatchSet out;
   double patches = 0, contacts = 0, unvalidated = 0;
   for (const Pose& p : s->poses) {  // untimed: sizes the scratch buffers; the counters

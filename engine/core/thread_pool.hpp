@@ -1,0 +1,75 @@
+#pragma once
+// A small pool of worker threads for the step's independent work (body pairs, contact groups, bodies).
+//
+// `run(n, f)` calls f(worker, begin, end) on fixed ranges that split [0, n) into one contiguous range per
+// worker, in order: the split depends only on n and the number of workers, never on timing, and each range
+// is handled by one thread in index order. Work that writes only to its own items (or to per-worker
+// buffers merged afterwards in worker order) therefore gives the same result with any number of threads.
+// With one worker everything runs on the calling thread.
+
+#include <atomic>
+#include <condition_variable>
+#include <cstddef>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace volpar {
+
+/// A barrier for the workers of one ThreadPool::run that meet many times in quick succession (the contact
+/// solver's phases): it spins briefly, then yields.
+class SpinBarrier {
+ public:
+  SpinBarrier() = default;
+  // (its state only lives during one run: moving an owner carries nothing over)
+  SpinBarrier(SpinBarrier&& other) noexcept : count_(other.count_) {}
+  SpinBarrier& operator=(SpinBarrier&& other) noexcept {
+    count_ = other.count_;
+    return *this;
+  }
+  /// Prepares for `count` participants (before they start).
+  void reset(int count) {
+    count_ = count;
+    waiting_.store(0, std::memory_order_relaxed);
+  }
+  /// Returns once all participants have called it; what each wrote before is visible to all after.
+  void wait();
+
+ private:
+  int count_ = 1;
+  std::atomic<int> waiting_{0};
+  std::atomic<unsigned> generation_{0};
+};
+
+class ThreadPool {
+ public:
+  /// `workers` threads in all, the calling thread included (so workers - 1 are started).
+  explicit ThreadPool(int workers = 1);
+  ~ThreadPool();
+  ThreadPool(const ThreadPool&) = delete;
+  ThreadPool& operator=(const ThreadPool&) = delete;
+
+  [[nodiscard]] int workers() const { return workers_; }
+  /// Calls f(worker, begin, end) for the ranges of [0, n), worker 0 on the calling thread; returns when
+  /// all are done. `weights`, if given (size n), balances the ranges by cumulative weight instead of count.
+  void run(std::size_t n, const std::function<void(int, std::size_t, std::size_t)>& f,
+           const std::vector<std::size_t>* weights = nullptr);
+  /// The range boundaries run() uses: bounds[w] .. bounds[w + 1] for worker w (workers + 1 entries).
+  void split(std::size_t n, const std::vector<std::size_t>* weights, std::vector<std::size_t>& bounds) const;
+
+ private:
+  void loop(int worker);
+
+  int workers_ = 1;
+  std::vector<std::thread> threads_;
+  std::mutex mutex_;
+  std::condition_variable start_, done_;
+  std::size_t generation_ = 0;
+  int pending_ = 0;
+  bool stop_ = false;
+  const std::function<void(int, std::size_t, std::size_t)>* job_ = nullptr;
+  std::vector<std::size_t> bounds_;
+};
+
+}  // namespace volpar
