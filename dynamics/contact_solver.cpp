@@ -1,6 +1,7 @@
 #include "dynamics/contact_solver.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 namespace volpar {
@@ -8,6 +9,7 @@ namespace volpar {
 namespace {
 
 constexpr std::uint32_t kFixed = ContactPointInput::kFixed;
+using V4 = Eigen::Vector4f;
 
 /// A deterministic tangent basis for a unit normal.
 void tangents(const Vec3& n, Vec3& t1, Vec3& t2) {
@@ -16,34 +18,50 @@ void tangents(const Vec3& n, Vec3& t1, Vec3& t2) {
   t2 = n.cross(t1);
 }
 
+V4 narrow(const Vec3& x) { return V4(static_cast<float>(x.x()), static_cast<float>(x.y()), static_cast<float>(x.z()), 0.0f); }
+Vec3 wide(const V4& x) { return x.head<3>().cast<double>(); }
+
 /// Velocity of B relative to A along the axis: J v.
 template <class Axis>
-inline double relative(const Axis& x, std::uint32_t a, std::uint32_t b, const std::vector<Vec3>& v,
-                       const std::vector<Vec3>& w) {
-  return x.d.dot(v[b] - v[a]) + x.crossB.dot(w[b]) - x.crossA.dot(w[a]);
+inline float relative(const Axis& x, const V4& va, const V4& wa, const V4& vb, const V4& wb) {
+  return (x.d.cwiseProduct(vb - va) + x.crossB.cwiseProduct(wb) - x.crossA.cwiseProduct(wa)).sum();
 }
 
-/// Impulse lambda along the axis: +lambda on B, -lambda on A (the fixed side's entries stay zero: its
-/// inverse mass and turns are).
-template <class Row, class Axis>
-inline void apply(const Row& r, const Axis& x, double lambda, std::vector<Vec3>& v, std::vector<Vec3>& w) {
-  v[r.a] -= (r.invMassA * lambda) * x.d;
-  w[r.a] -= lambda * x.turnA;
-  v[r.b] += (r.invMassB * lambda) * x.d;
-  w[r.b] += lambda * x.turnB;
-}
-
-/// The Jacobian of direction d at arms rA, rB, and its effective mass.
+/// The Jacobian of direction d at arms rA, rB, and its effective mass (computed in double).
 template <class Axis>
-void prepareAxis(const SolverBody* a, const SolverBody* b, const Vec3& rA, const Vec3& rB, const Vec3& d, Axis& x) {
-  x.d = d;
-  x.crossA = rA.cross(d);
-  x.crossB = rB.cross(d);
-  x.turnA = a ? Vec3(a->invInertia * x.crossA) : Vec3::Zero();
-  x.turnB = b ? Vec3(b->invInertia * x.crossB) : Vec3::Zero();
-  const double k = (a ? a->invMass : 0.0) + (b ? b->invMass : 0.0) + x.crossA.dot(x.turnA) + x.crossB.dot(x.turnB);
-  x.mass = k > 0.0 ? 1.0 / k : 0.0;
+float prepareAxis(const SolverBody* a, const SolverBody* b, const Vec3& rA, const Vec3& rB, const Vec3& d, Axis& x) {
+  const Vec3 crossA = rA.cross(d), crossB = rB.cross(d);
+  const Vec3 turnA = a ? Vec3(a->invInertia * crossA) : Vec3::Zero();
+  const Vec3 turnB = b ? Vec3(b->invInertia * crossB) : Vec3::Zero();
+  const double k = (a ? a->invMass : 0.0) + (b ? b->invMass : 0.0) + crossA.dot(turnA) + crossB.dot(turnB);
+  x.d = narrow(d);
+  x.crossA = narrow(crossA);
+  x.crossB = narrow(crossB);
+  x.turnA = narrow(turnA);
+  x.turnB = narrow(turnB);
+  return k > 0.0 ? static_cast<float>(1.0 / k) : 0.0f;
 }
+
+using F4 = Eigen::Array4f;
+
+/// The x, y and z of four bodies' vectors, lane by lane.
+inline void gather(const V4* base, const std::array<std::uint32_t, 4>& slot, F4& x, F4& y, F4& z) {
+  const V4& p0 = base[slot[0]];
+  const V4& p1 = base[slot[1]];
+  const V4& p2 = base[slot[2]];
+  const V4& p3 = base[slot[3]];
+  x = F4(p0.x(), p1.x(), p2.x(), p3.x());
+  y = F4(p0.y(), p1.y(), p2.y(), p3.y());
+  z = F4(p0.z(), p1.z(), p2.z(), p3.z());
+}
+
+/// The inverse of gather (lane by lane, in order: a padding lane writes the fixed side's zero back).
+inline void scatter(V4* base, const std::array<std::uint32_t, 4>& slot, const F4& x, const F4& y, const F4& z) {
+  for (int i = 0; i < 4; ++i) base[slot[static_cast<std::size_t>(i)]] = V4(x[i], y[i], z[i], 0.0f);
+}
+
+/// Slot of a key in a power-of-two table (Fibonacci hashing).
+inline std::uint64_t hashSlot(std::uint64_t key, std::uint64_t mask) { return (key * 0x9E3779B97F4A7C15ull >> 17) & mask; }
 
 }  // namespace
 
@@ -78,47 +96,275 @@ void ContactSolver::order(std::span<const SolverBody> bodies, std::span<const Co
   std::array<std::size_t, 3> next{parts_[0], parts_[1], parts_[2]};
   order_.resize(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) order_[next[partOf(points[i])]++] = static_cast<std::uint32_t>(i);
+  // within a part, the points of one body pair (which come one after another) spread apart: first every
+  // pair's first point, then every pair's second, and so on. Neighbouring rows then mostly touch other
+  // bodies, and the processor overlaps their work instead of waiting for each row's result
+  rank_.resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    rank_[i] = i > 0 && points[i].a == points[i - 1].a && points[i].b == points[i - 1].b ? rank_[i - 1] + 1 : 0;
+  scratch_.resize(points.size());
+  for (std::size_t part = 0; part < 3; ++part) {
+    std::uint32_t ranks = 0;
+    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) ranks = std::max(ranks, rank_[order_[k]] + 1);
+    rankStart_.assign(ranks + 1, 0);
+    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) ++rankStart_[rank_[order_[k]] + 1];
+    for (std::size_t q = 1; q <= ranks; ++q) rankStart_[q] += rankStart_[q - 1];
+    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k)
+      scratch_[parts_[part] + rankStart_[rank_[order_[k]]]++] = order_[k];
+  }
+  std::swap(order_, scratch_);
 }
 
-void ContactSolver::velocitySweep(std::size_t begin, std::size_t end) {
-  for (std::size_t k = begin; k < end; ++k) {
+void ContactSolver::velocitySweep(std::span<const std::uint32_t> rows) {
+  // (each row's two bodies are loaded once, updated in registers and stored once: a row's a and b differ)
+  V4* const v = v_.data();
+  V4* const w = w_.data();
+  for (const std::uint32_t k : rows) {
     Row& r = rows_[k];
+    V4 va = v[r.a], wa = w[r.a], vb = v[r.b], wb = w[r.b];
     // friction: both directions, the sum clamped to the cone
-    const double old1 = r.lambdaT1, old2 = r.lambdaT2;
-    double l1 = old1 - r.t1.mass * relative(r.t1, r.a, r.b, v_, w_);
-    double l2 = old2 - r.t2.mass * relative(r.t2, r.a, r.b, v_, w_);
-    const double limit = r.friction * r.lambdaN;
-    const double mag2 = l1 * l1 + l2 * l2;
+    const float old1 = r.lambdaT1, old2 = r.lambdaT2;
+    float l1 = old1 - r.massT1 * relative(r.t1, va, wa, vb, wb);
+    float l2 = old2 - r.massT2 * relative(r.t2, va, wa, vb, wb);
+    const float limit = r.friction * r.lambdaN;
+    const float mag2 = l1 * l1 + l2 * l2;
     if (mag2 > limit * limit) {
-      const double s = mag2 > 0.0 ? limit / std::sqrt(mag2) : 0.0;
+      const float s = mag2 > 0.0f ? limit / std::sqrt(mag2) : 0.0f;
       l1 *= s;
       l2 *= s;
     }
     r.lambdaT1 = l1;
     r.lambdaT2 = l2;
-    apply(r, r.t1, l1 - old1, v_, w_);
-    apply(r, r.t2, l2 - old2, v_, w_);
+    const float d1 = l1 - old1, d2 = l2 - old2;
+    const V4 p = d1 * r.t1.d + d2 * r.t2.d;
+    va -= r.invMassA * p;
+    vb += r.invMassB * p;
+    wa -= d1 * r.t1.turnA + d2 * r.t2.turnA;
+    wb += d1 * r.t1.turnB + d2 * r.t2.turnB;
     // normal
-    const double oldN = r.lambdaN;
-    r.lambdaN = std::max(oldN + r.n.mass * (r.targetN - relative(r.n, r.a, r.b, v_, w_)), 0.0);
-    apply(r, r.n, r.lambdaN - oldN, v_, w_);
+    const float oldN = r.lambdaN;
+    r.lambdaN = std::max(oldN + r.massN * (r.targetN - relative(r.n, va, wa, vb, wb)), 0.0f);
+    const float dn = r.lambdaN - oldN;
+    va -= (r.invMassA * dn) * r.n.d;
+    vb += (r.invMassB * dn) * r.n.d;
+    wa -= dn * r.n.turnA;
+    wb += dn * r.n.turnB;
+    v[r.a] = va;
+    w[r.a] = wa;
+    v[r.b] = vb;
+    w[r.b] = wb;
   }
 }
 
-bool ContactSolver::positionSweep(std::size_t begin, std::size_t end) {
+bool ContactSolver::positionSweep(std::span<const std::uint32_t> rows) {
   bool moved = false;  // whether a point's pseudo velocity changed by more than the tolerance
-  const double tolerance = settings_.positionTolerance;
-  for (std::size_t k = begin; k < end; ++k) {
+  const auto tolerance = static_cast<float>(settings_.positionTolerance);
+  V4* const v = pv_.data();
+  V4* const w = pw_.data();
+  for (const std::uint32_t k : rows) {
     Row& r = rows_[k];
-    if (r.biasP <= 0.0 && r.lambdaP <= 0.0) continue;
-    const double old = r.lambdaP;
-    r.lambdaP = std::max(old + r.n.mass * (r.biasP - relative(r.n, r.a, r.b, pv_, pw_)), 0.0);
-    const double change = r.lambdaP - old;
+    if (r.biasP <= 0.0f && r.lambdaP <= 0.0f) continue;
+    const float old = r.lambdaP;
+    r.lambdaP = std::max(old + r.massN * (r.biasP - relative(r.n, v[r.a], w[r.a], v[r.b], w[r.b])), 0.0f);
+    const float change = r.lambdaP - old;
     // (the change of the point's pseudo velocity is change / mass)
-    moved = moved || std::abs(change) > tolerance * r.n.mass;
-    apply(r, r.n, change, pv_, pw_);
+    moved = moved || std::abs(change) > tolerance * r.massN;
+    v[r.a] -= (r.invMassA * change) * r.n.d;
+    w[r.a] -= change * r.n.turnA;
+    v[r.b] += (r.invMassB * change) * r.n.d;
+    w[r.b] += change * r.n.turnB;
   }
   return moved;
+}
+
+void ContactSolver::pack(std::size_t part) {
+  PartBatches& pb = batches_[part];
+  const auto begin = static_cast<std::uint32_t>(parts_[part]);
+  const auto count = static_cast<std::uint32_t>(parts_[part + 1] - parts_[part]);
+  const std::uint32_t fixed = fixedSlot_[part];
+  pb.used.assign(slots_, 0);
+  pb.colour.resize(count);
+  pb.rest.clear();
+  pb.batches.clear();
+  // greedy colouring in row order: the first colour neither body has taken (the fixed side takes none)
+  std::array<std::uint32_t, 64> perColour{};
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const Row& r = rows_[begin + i];
+    const std::uint64_t taken = (r.a == fixed ? 0 : pb.used[r.a]) | (r.b == fixed ? 0 : pb.used[r.b]);
+    if (taken == ~std::uint64_t{0}) {
+      pb.colour[i] = 64;
+      pb.rest.push_back(begin + i);
+      continue;
+    }
+    const auto c = static_cast<std::uint8_t>(std::countr_one(taken));
+    pb.colour[i] = c;
+    ++perColour[c];
+    if (r.a != fixed) pb.used[r.a] |= std::uint64_t{1} << c;
+    if (r.b != fixed) pb.used[r.b] |= std::uint64_t{1} << c;
+  }
+  // rows by colour (in row order within a colour), four to a batch, a colour's last batch padded
+  pb.start[0] = 0;
+  for (std::size_t c = 0; c < 64; ++c) pb.start[c + 1] = pb.start[c] + (perColour[c] + 3) / 4 * 4;
+  pb.sorted.assign(pb.start[64], kNoRow);
+  std::array<std::uint32_t, 64> next{};
+  std::copy(pb.start.begin(), pb.start.begin() + 64, next.begin());
+  for (std::uint32_t i = 0; i < count; ++i)
+    if (pb.colour[i] < 64) pb.sorted[next[pb.colour[i]]++] = begin + i;
+  pb.batches.resize(pb.start[64] / 4);
+  const auto put = [](const Axis& x, AxisBatch& b, int l) {
+    b.dx[l] = x.d.x(), b.dy[l] = x.d.y(), b.dz[l] = x.d.z();
+    b.ax[l] = x.crossA.x(), b.ay[l] = x.crossA.y(), b.az[l] = x.crossA.z();
+    b.bx[l] = x.crossB.x(), b.by[l] = x.crossB.y(), b.bz[l] = x.crossB.z();
+    b.tax[l] = x.turnA.x(), b.tay[l] = x.turnA.y(), b.taz[l] = x.turnA.z();
+    b.tbx[l] = x.turnB.x(), b.tby[l] = x.turnB.y(), b.tbz[l] = x.turnB.z();
+  };
+  for (std::size_t j = 0; j < pb.batches.size(); ++j) {
+    Batch& b = pb.batches[j];
+    for (int l = 0; l < 4; ++l) {
+      const auto lane = static_cast<std::size_t>(l);
+      const std::uint32_t k = pb.sorted[4 * j + lane];
+      b.row[lane] = k;
+      if (k == kNoRow) {  // padding: all zero on the fixed side
+        static const Row zero{};
+        b.a[lane] = b.b[lane] = fixed;
+        put(zero.n, b.n, l), put(zero.t1, b.t1, l), put(zero.t2, b.t2, l);
+        b.massN[l] = b.massT1[l] = b.massT2[l] = b.invMassA[l] = b.invMassB[l] = 0.0f;
+        b.targetN[l] = b.friction[l] = b.biasP[l] = 0.0f;
+        b.lambdaN[l] = b.lambdaT1[l] = b.lambdaT2[l] = b.lambdaP[l] = 0.0f;
+        continue;
+      }
+      const Row& r = rows_[k];
+      b.a[lane] = r.a;
+      b.b[lane] = r.b;
+      put(r.n, b.n, l), put(r.t1, b.t1, l), put(r.t2, b.t2, l);
+      b.massN[l] = r.massN, b.massT1[l] = r.massT1, b.massT2[l] = r.massT2;
+      b.invMassA[l] = r.invMassA, b.invMassB[l] = r.invMassB;
+      b.targetN[l] = r.targetN, b.friction[l] = r.friction, b.biasP[l] = r.biasP;
+      b.lambdaN[l] = r.lambdaN, b.lambdaT1[l] = r.lambdaT1, b.lambdaT2[l] = r.lambdaT2, b.lambdaP[l] = r.lambdaP;
+    }
+  }
+}
+
+void ContactSolver::unpack(std::size_t part) {
+  for (const Batch& b : batches_[part].batches)
+    for (int l = 0; l < 4; ++l) {
+      const std::uint32_t k = b.row[static_cast<std::size_t>(l)];
+      if (k == kNoRow) continue;
+      Row& r = rows_[k];
+      r.lambdaN = b.lambdaN[l], r.lambdaT1 = b.lambdaT1[l], r.lambdaT2 = b.lambdaT2[l], r.lambdaP = b.lambdaP[l];
+    }
+}
+
+namespace {
+
+/// J v of an axis, lane by lane.
+struct Motion {
+  F4 vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz;
+  [[nodiscard]] F4 along(const auto& x) const {
+    return x.dx * (vbx - vax) + x.dy * (vby - vay) + x.dz * (vbz - vaz) + (x.bx * wbx + x.by * wby + x.bz * wbz) -
+           (x.ax * wax + x.ay * way + x.az * waz);
+  }
+  /// An impulse lam along the axis: -lam on A, +lam on B.
+  void push(const auto& x, const F4& lam, const F4& invMassA, const F4& invMassB) {
+    const F4 ia = invMassA * lam, ib = invMassB * lam;
+    vax -= ia * x.dx, vay -= ia * x.dy, vaz -= ia * x.dz;
+    vbx += ib * x.dx, vby += ib * x.dy, vbz += ib * x.dz;
+    wax -= lam * x.tax, way -= lam * x.tay, waz -= lam * x.taz;
+    wbx += lam * x.tbx, wby += lam * x.tby, wbz += lam * x.tbz;
+  }
+  void load(const V4* v, const V4* w, const std::array<std::uint32_t, 4>& a, const std::array<std::uint32_t, 4>& b) {
+    gather(v, a, vax, vay, vaz);
+    gather(w, a, wax, way, waz);
+    gather(v, b, vbx, vby, vbz);
+    gather(w, b, wbx, wby, wbz);
+  }
+  void store(V4* v, V4* w, const std::array<std::uint32_t, 4>& a, const std::array<std::uint32_t, 4>& b) const {
+    scatter(v, a, vax, vay, vaz);
+    scatter(w, a, wax, way, waz);
+    scatter(v, b, vbx, vby, vbz);
+    scatter(w, b, wbx, wby, wbz);
+  }
+};
+
+}  // namespace
+
+void ContactSolver::velocityPart(std::size_t part) {
+  // the same arithmetic as velocitySweep, four rows at once
+  V4* const v = v_.data();
+  V4* const w = w_.data();
+  for (Batch& b : batches_[part].batches) {
+    Motion m;
+    m.load(v, w, b.a, b.b);
+    const F4 old1 = b.lambdaT1, old2 = b.lambdaT2;
+    F4 l1 = old1 - b.massT1 * m.along(b.t1);
+    F4 l2 = old2 - b.massT2 * m.along(b.t2);
+    const F4 limit = b.friction * b.lambdaN;
+    const F4 mag2 = l1 * l1 + l2 * l2;
+    const F4 scale = (mag2 > limit * limit).select(limit / mag2.max(1e-30f).sqrt(), F4::Ones());
+    l1 *= scale;
+    l2 *= scale;
+    b.lambdaT1 = l1;
+    b.lambdaT2 = l2;
+    m.push(b.t1, l1 - old1, b.invMassA, b.invMassB);
+    m.push(b.t2, l2 - old2, b.invMassA, b.invMassB);
+    const F4 oldN = b.lambdaN;
+    b.lambdaN = (oldN + b.massN * (b.targetN - m.along(b.n))).max(0.0f);
+    m.push(b.n, b.lambdaN - oldN, b.invMassA, b.invMassB);
+    m.store(v, w, b.a, b.b);
+  }
+  velocitySweep(batches_[part].rest);
+}
+
+bool ContactSolver::positionPart(std::size_t part) {
+  const auto tolerance = static_cast<float>(settings_.positionTolerance);
+  V4* const v = pv_.data();
+  V4* const w = pw_.data();
+  bool moved = false;
+  for (Batch& b : batches_[part].batches) {
+    // (a row with nothing to correct and no impulse yet stays out)
+    const auto active = (b.biasP > 0.0f) || (b.lambdaP > 0.0f);
+    if (!active.any()) continue;
+    Motion m;
+    m.load(v, w, b.a, b.b);
+    const F4 old = b.lambdaP;
+    b.lambdaP = active.select((old + b.massN * (b.biasP - m.along(b.n))).max(0.0f), old);
+    const F4 change = b.lambdaP - old;
+    moved = moved || (change.abs() > tolerance * b.massN).any();
+    m.push(b.n, change, b.invMassA, b.invMassB);
+    m.store(v, w, b.a, b.b);
+  }
+  return positionSweep(batches_[part].rest) || moved;
+}
+
+const ContactSolver::Cached* ContactSolver::cached(std::uint64_t key) const {
+  if (table_.empty()) return nullptr;
+  for (std::uint64_t i = hashSlot(key, tableMask_);; i = (i + 1) & tableMask_) {
+    const std::uint32_t k = table_[i];
+    if (k == kEmpty) return nullptr;
+    if (cacheKeys_[k] == key) return &cache_[k];
+  }
+}
+
+void ContactSolver::remember() {
+  // a key can repeat when two points share a particle pair (raw normals never, planes never): the first
+  // in solving order is found
+  cacheKeys_.assign(keys_.begin(), keys_.end());
+  cache_.resize(rows_.size());
+  std::size_t size = 16;
+  while (size < 2 * rows_.size()) size *= 2;
+  table_.assign(size, kEmpty);
+  tableMask_ = size - 1;
+  for (std::size_t k = 0; k < rows_.size(); ++k) {
+    const Row& r = rows_[k];
+    cache_[k] = Cached{r.lambdaN, r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d};
+    for (std::uint64_t i = hashSlot(keys_[k], tableMask_);; i = (i + 1) & tableMask_) {
+      if (table_[i] == kEmpty) {
+        table_[i] = static_cast<std::uint32_t>(k);
+        break;
+      }
+      if (cacheKeys_[table_[i]] == keys_[k]) break;
+    }
+  }
 }
 
 void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactPointInput> points, double dt,
@@ -126,15 +372,15 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   const std::size_t nb = bodies.size();
   order(bodies, points);
   // velocities in their slots; the fixed side of each part has an always-zero entry of its own
-  v_.assign(slots_, Vec3::Zero());
-  w_.assign(slots_, Vec3::Zero());
-  pv_.assign(slots_, Vec3::Zero());
-  pw_.assign(slots_, Vec3::Zero());
+  v_.assign(slots_, V4::Zero());
+  w_.assign(slots_, V4::Zero());
+  pv_.assign(slots_, V4::Zero());
+  pw_.assign(slots_, V4::Zero());
   for (std::size_t i = 0; i < nb; ++i) {
-    v_[slot_[i]] = bodies[i].v;
-    w_[slot_[i]] = bodies[i].w;
-    pv_[slot_[i]] = bodies[i].pv;
-    pw_[slot_[i]] = bodies[i].pw;
+    v_[slot_[i]] = narrow(bodies[i].v);
+    w_[slot_[i]] = narrow(bodies[i].w);
+    pv_[slot_[i]] = narrow(bodies[i].pv);
+    pw_[slot_[i]] = narrow(bodies[i].pw);
   }
   rows_.resize(points.size());
   keys_.resize(points.size());
@@ -149,22 +395,25 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       r.b = in.b == kFixed ? fixedSlot_[part] : slot_[in.b];
       const SolverBody* a = in.a == kFixed ? nullptr : &bodies[in.a];
       const SolverBody* b = in.b == kFixed ? nullptr : &bodies[in.b];
-      r.invMassA = a ? a->invMass : 0.0;
-      r.invMassB = b ? b->invMass : 0.0;
+      r.invMassA = a ? static_cast<float>(a->invMass) : 0.0f;
+      r.invMassB = b ? static_cast<float>(b->invMass) : 0.0f;
       Vec3 t1, t2;
       tangents(in.normal, t1, t2);
-      prepareAxis(a, b, in.rA, in.rB, in.normal, r.n);
-      prepareAxis(a, b, in.rA, in.rB, t1, r.t1);
-      prepareAxis(a, b, in.rA, in.rB, t2, r.t2);
+      r.massN = prepareAxis(a, b, in.rA, in.rB, in.normal, r.n);
+      r.massT1 = prepareAxis(a, b, in.rA, in.rB, t1, r.t1);
+      r.massT2 = prepareAxis(a, b, in.rA, in.rB, t2, r.t2);
       keys_[k] = in.key;
-      r.friction = in.friction;
+      r.friction = static_cast<float>(in.friction);
       // relative velocity of B with respect to A along n: negative when approaching
-      const double vn = relative(r.n, r.a, r.b, v_, w_);
+      const double vn = relative(r.n, v_[r.a], w_[r.a], v_[r.b], w_[r.b]);
       // bounce above the threshold; otherwise a speculative contact may close its gap this step, no more
-      if (vn < -settings_.restitutionThreshold && in.restitution > 0.0) r.targetN = -in.restitution * vn;
-      else r.targetN = in.depth < 0.0 ? in.depth / dt : 0.0;
-      r.biasP = std::min(settings_.baumgarte * std::max(in.depth - in.slop, 0.0) / dt, settings_.maxCorrectionSpeed);
-      r.lambdaN = r.lambdaT1 = r.lambdaT2 = r.lambdaP = 0.0;
+      const double target = vn < -settings_.restitutionThreshold && in.restitution > 0.0 ? -in.restitution * vn
+                            : in.depth < 0.0                                           ? in.depth / dt
+                                                                                       : 0.0;
+      r.targetN = static_cast<float>(target);
+      r.biasP = static_cast<float>(
+          std::min(settings_.baumgarte * std::max(in.depth - in.slop, 0.0) / dt, settings_.maxCorrectionSpeed));
+      r.lambdaN = r.lambdaT1 = r.lambdaT2 = r.lambdaP = 0.0f;
     }
   };
   // warm start from the last step's impulses, matched by key
@@ -172,14 +421,16 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     std::size_t started = 0;
     for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) {
       Row& r = rows_[k];
-      const auto it = std::lower_bound(cache_.begin(), cache_.end(), keys_[k], [](const Cached& c, std::uint64_t key) { return c.key < key; });
-      if (it == cache_.end() || it->key != keys_[k]) continue;
-      r.lambdaN = it->lambdaN;
-      r.lambdaT1 = it->lambdaT.dot(r.t1.d);
-      r.lambdaT2 = it->lambdaT.dot(r.t2.d);
-      apply(r, r.n, r.lambdaN, v_, w_);
-      apply(r, r.t1, r.lambdaT1, v_, w_);
-      apply(r, r.t2, r.lambdaT2, v_, w_);
+      const Cached* c = cached(keys_[k]);
+      if (!c) continue;
+      r.lambdaN = c->lambdaN;
+      r.lambdaT1 = c->lambdaT.dot(r.t1.d);
+      r.lambdaT2 = c->lambdaT.dot(r.t2.d);
+      const V4 p = r.lambdaN * r.n.d + r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d;
+      v_[r.a] -= r.invMassA * p;
+      w_[r.a] -= r.lambdaN * r.n.turnA + r.lambdaT1 * r.t1.turnA + r.lambdaT2 * r.t2.turnA;
+      v_[r.b] += r.invMassB * p;
+      w_[r.b] += r.lambdaN * r.n.turnB + r.lambdaT1 * r.t1.turnB + r.lambdaT2 * r.t2.turnB;
       ++started;
     }
     return started;
@@ -203,22 +454,26 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       if (worker == 0) started[2] = warmStart(2);
       barrier_.wait();
     }
+    for (std::size_t part = begin; part < end; ++part) pack(part);
+    if (worker == 0) pack(2);
     for (int it = 0; it < settings_.iterations; ++it) {
-      for (std::size_t part = begin; part < end; ++part) velocitySweep(parts_[part], parts_[part + 1]);
+      for (std::size_t part = begin; part < end; ++part) velocityPart(part);
       barrier_.wait();
-      if (worker == 0) velocitySweep(parts_[2], parts_[3]);
+      if (worker == 0) velocityPart(2);
       barrier_.wait();
     }
     // (until no point's pseudo velocity changes by more than the tolerance: the same decision on every
     // thread, from the parts' own results)
     for (int it = 0; it < settings_.positionIterations; ++it) {
       auto& m = moved[static_cast<std::size_t>(it & 1)];
-      for (std::size_t part = begin; part < end; ++part) m[part] = positionSweep(parts_[part], parts_[part + 1]);
+      for (std::size_t part = begin; part < end; ++part) m[part] = positionPart(part);
       barrier_.wait();
-      if (worker == 0) m[2] = positionSweep(parts_[2], parts_[3]);
+      if (worker == 0) m[2] = positionPart(2);
       barrier_.wait();
       if (!m[0] && !m[1] && !m[2]) break;
     }
+    for (std::size_t part = begin; part < end; ++part) unpack(part);
+    if (worker == 0) unpack(2);
   };
   if (workers == 2 && !rows_.empty()) {
     // exactly two ranges of one half each, whatever the pool's size
@@ -230,27 +485,33 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   }
   warmStarted_ = started[0] + started[1] + started[2];
 
-  for (std::size_t i = 0; i < nb; ++i) {
-    bodies[i].v = v_[slot_[i]];
-    bodies[i].w = w_[slot_[i]];
-    bodies[i].pv = pv_[slot_[i]];
-    bodies[i].pw = pw_[slot_[i]];
-  }
+  // the velocities back in double, from the impulses: each point's impulse P, +P on B and -P on A, applied
+  // to the bodies' double velocities at the point's double arms. The iterations' own single-precision
+  // velocities agree with these to rounding, but only these conserve momentum to double precision (and a
+  // body without contacts keeps its velocity bit for bit)
   impulses_.resize(rows_.size());
-  nextCache_.clear();
   for (std::size_t k = 0; k < rows_.size(); ++k) {
     const Row& r = rows_[k];
-    const Vec3 tangential = r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d;
-    impulses_[order_[k]] = r.lambdaN * r.n.d + tangential;
-    // kept for the next step, sorted by key below
-    nextCache_.push_back({keys_[k], r.lambdaN, tangential});
-    totalNormalImpulse_ += r.lambdaN;
+    const ContactPointInput& in = points[order_[k]];
+    const Vec3 impulse = wide(r.lambdaN * r.n.d + r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d);
+    impulses_[order_[k]] = impulse;
+    totalNormalImpulse_ += static_cast<double>(r.lambdaN);
+    if (in.a != kFixed) {
+      SolverBody& a = bodies[in.a];
+      a.v -= a.invMass * impulse;
+      a.w -= a.invInertia * in.rA.cross(impulse);
+    }
+    if (in.b != kFixed) {
+      SolverBody& b = bodies[in.b];
+      b.v += b.invMass * impulse;
+      b.w += b.invInertia * in.rB.cross(impulse);
+    }
   }
-  std::sort(nextCache_.begin(), nextCache_.end(), [](const Cached& x, const Cached& y) { return x.key < y.key; });
-  // a key can repeat when two points share a particle pair (raw normals never, planes never): keep the first
-  nextCache_.erase(std::unique(nextCache_.begin(), nextCache_.end(), [](const Cached& x, const Cached& y) { return x.key == y.key; }),
-                   nextCache_.end());
-  std::swap(cache_, nextCache_);
+  for (std::size_t i = 0; i < nb; ++i) {
+    bodies[i].pv = wide(pv_[slot_[i]]);
+    bodies[i].pw = wide(pw_[slot_[i]]);
+  }
+  remember();
 }
 
 }  // namespace volpar
