@@ -226,7 +226,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
       if (settings_.reuse && cacheable(in, g)) remember(in, contacts, g, patchBegin, w);
     }
   };
-  if (pool) pool->run(groups, work, &weights_);
+  if (pool && pool->worthSharing(groups, 512)) pool->run(groups, work, &weights_);
   else work(0, 0, groups);
   // merge in worker order, which is group order
   cache_.clear();

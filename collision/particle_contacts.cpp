@@ -305,7 +305,7 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
     Worker& w = workers_[static_cast<std::size_t>(worker)];
     for (std::size_t i = begin; i < end; ++i) bodyPair(particles, bodies, pairs[i].a, pairs[i].b, boxes, w);
   };
-  if (pool) pool->run(pairs.size(), work);
+  if (pool && pool->worthSharing(pairs.size(), 512)) pool->run(pairs.size(), work);
   else work(0, 0, pairs.size());
   cache_.clear();
   reusedPairs_ = 0;

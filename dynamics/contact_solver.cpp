@@ -438,7 +438,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
 
   // everything in the same order of phases, on one thread or two: prepare (after which the approach
   // speeds are taken), warm start, the iterations; in each phase the two halves, then the joining points
-  const int workers = pool && pool->workers() >= 2 ? 2 : 1;
+  const int workers = pool && pool->worthSharing(rows_.size(), 1024) ? 2 : 1;
   barrier_.reset(workers);
   std::array<std::size_t, 3> started{};
   // (two sets used alternately, so a thread deciding to stop never reads a flag the other has

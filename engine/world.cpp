@@ -179,10 +179,11 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   return id;
 }
 
-void World::setThreads(int threads) {
+void World::setThreads(int threads, bool shareAll) {
   settings_.threads = std::max(1, threads);
   if (settings_.threads == 1) pool_.reset();
   else if (!pool_ || pool_->workers() != settings_.threads) pool_ = std::make_unique<ThreadPool>(settings_.threads);
+  if (pool_) pool_->setShareAll(shareAll);
 }
 
 StepStatus World::step() {
@@ -631,7 +632,7 @@ void World::integratePositions() {
       updateRigidParticles(id);
     }
   };
-  if (pool_) pool_->run(rigidBodies_.size(), rigid);
+  if (pool_ && pool_->worthSharing(rigidBodies_.size(), 256)) pool_->run(rigidBodies_.size(), rigid);
   else rigid(0, 0, rigidBodies_.size());
   DeformableStepInput in;
   in.particles = deformableParticles_;

@@ -77,7 +77,8 @@ class World {
   /// Advances the world by settings().dt.
   StepStatus step();
   /// Worker threads for later steps (1 = run on the calling thread only); results do not depend on it.
-  void setThreads(int threads);
+  /// Work too small to be worth waking the workers runs on the calling thread, unless `shareAll`.
+  void setThreads(int threads, bool shareAll = false);
 
   [[nodiscard]] const WorldSettings& settings() const { return settings_; }
   [[nodiscard]] const ParticleStore& particles() const { return particles_; }

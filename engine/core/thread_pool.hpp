@@ -51,6 +51,13 @@ class ThreadPool {
   ThreadPool& operator=(const ThreadPool&) = delete;
 
   [[nodiscard]] int workers() const { return workers_; }
+  /// Whether n items are worth handing out: at least `perWorker` for every worker (waking the workers
+  /// costs more than a few small items). Sharing or not never changes a result.
+  [[nodiscard]] bool worthSharing(std::size_t n, std::size_t perWorker) const {
+    return workers_ > 1 && (shareAll_ || n >= perWorker * static_cast<std::size_t>(workers_));
+  }
+  /// Hands out work of any size (tests use it to run the threaded paths on small scenes).
+  void setShareAll(bool on) { shareAll_ = on; }
   /// Calls f(worker, begin, end) for the ranges of [0, n), worker 0 on the calling thread; returns when
   /// all are done. `weights`, if given (size n), balances the ranges by cumulative weight instead of count.
   void run(std::size_t n, const std::function<void(int, std::size_t, std::size_t)>& f,
@@ -62,6 +69,7 @@ class ThreadPool {
   void loop(int worker);
 
   int workers_ = 1;
+  bool shareAll_ = false;
   std::vector<std::thread> threads_;
   std::mutex mutex_;
   std::condition_variable start_, done_;

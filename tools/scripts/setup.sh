@@ -4,6 +4,8 @@
 #
 #   tools/scripts/setup.sh demo   # Release build, runs scenes/examples/demo.yaml to build/demo.h5
 #   tools/scripts/setup.sh test   # RelWithDebInfo build with assertions, runs every test (ctest)
+#   tools/scripts/setup.sh bench [ARGS]  # Release build of pile_bench, runs pile-N against Bullet
+#                                        # (default: --n 125,1000 --repeats 3 --csv build/pile_bench.csv)
 #   tools/scripts/setup.sh deps   # packages only
 #
 # Run as root, or as a user with sudo.
@@ -44,6 +46,14 @@ case "${1:-}" in
   deps)
     install_deps
     ;;
+  bench)
+    install_deps
+    shift
+    cmake --preset release
+    cmake --build --preset release --target pile_bench
+    if (($# == 0)); then set -- --n 125,1000 --repeats 3 --csv build/pile_bench.csv; fi
+    build/release/tools/bench/pile_bench "$@"
+    ;;
   demo)
     install_deps
     build release
@@ -57,7 +67,7 @@ case "${1:-}" in
     ctest --preset dev
     ;;
   *)
-    echo "usage: $0 demo|test|deps" >&2
+    echo "usage: $0 demo|test|bench [PILE_BENCH ARGS]|deps" >&2
     exit 2
     ;;
 esac
