@@ -607,30 +607,36 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
   double bestSlack = -std::numeric_limits<double>::infinity();
   bool bestValid = false;
   Candidate best{fallback, NormalSource::CentreLine};
+  // the rings' particles, gathered once for all candidates
+  const auto gather = [&](const std::vector<ParticleId>& ring, std::size_t seeds, std::vector<Worker::RingPoint>& points) {
+    points.resize(ring.size());
+    for (std::size_t i = 0; i < ring.size(); ++i) {
+      const ParticleId q = ring[i];
+      points[i] = {p.position[q.index()], i < seeds ? Vec3::Zero() : worldNormal(in, q), p.radius[q.index()], i < seeds};
+    }
+  };
+  gather(w.ringA, w.seedsA.size(), w.ringPointsA);
+  gather(w.ringB, w.seedsB.size(), w.ringPointsB);
   for (Candidate& cand : w.candidates) {
     const Vec3 orient = ref.norm() > 1e-12 ? ref : fallback;
     if (cand.normal.dot(orient) < 0.0) cand.normal = -cand.normal;
     // the patch's own particles always count; a neighbour only if it is interior or its surface faces the
     // plane (around a concave corner the neighbourhood wraps onto a face that the plane must not judge)
-    auto counts = [&](ParticleId q, std::size_t seeds, std::size_t i, double sign) {
-      if (i < seeds) return true;
-      const Vec3 nq = worldNormal(in, q);
-      return nq.isZero() || sign * nq.dot(cand.normal) > 0.05;
+    auto counts = [&](const Worker::RingPoint& q, double sign) {
+      return q.own || q.n.isZero() || sign * q.n.dot(cand.normal) > 0.05;
     };
     double slack = std::numeric_limits<double>::infinity();
     double reachA = -std::numeric_limits<double>::infinity();  // farthest A sphere along n
     double reachB = std::numeric_limits<double>::infinity();   // nearest B sphere along n
-    for (std::size_t i = 0; i < w.ringA.size(); ++i) {
-      if (!counts(w.ringA[i], w.seedsA.size(), i, 1.0)) continue;
-      const Vec3& x = p.position[w.ringA[i].index()];
-      slack = std::min(slack, -cand.normal.dot(x - deep.point));
-      reachA = std::max(reachA, cand.normal.dot(x) + p.radius[w.ringA[i].index()]);
+    for (const Worker::RingPoint& q : w.ringPointsA) {
+      if (!counts(q, 1.0)) continue;
+      slack = std::min(slack, -cand.normal.dot(q.x - deep.point));
+      reachA = std::max(reachA, cand.normal.dot(q.x) + q.r);
     }
-    for (std::size_t i = 0; i < w.ringB.size(); ++i) {
-      if (!counts(w.ringB[i], w.seedsB.size(), i, -1.0)) continue;
-      const Vec3& x = p.position[w.ringB[i].index()];
-      slack = std::min(slack, cand.normal.dot(x - deep.point));
-      reachB = std::min(reachB, cand.normal.dot(x) - p.radius[w.ringB[i].index()]);
+    for (const Worker::RingPoint& q : w.ringPointsB) {
+      if (!counts(q, -1.0)) continue;
+      slack = std::min(slack, cand.normal.dot(q.x - deep.point));
+      reachB = std::min(reachB, cand.normal.dot(q.x) - q.r);
     }
     // a plane: its surface is the B side
     if (isPlane) reachB = -plane->offset;

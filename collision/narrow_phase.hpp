@@ -160,6 +160,14 @@ class NarrowPhase {
     Side sideA, sideB;
     std::vector<Candidate> candidates;
     std::vector<ParticleId> ringA, ringB, seedsA, seedsB, frontier, next;
+    /// A validation ring's particle, gathered once for all candidates: centre, radius, world normal
+    /// (zero for interior particles), and whether it is one of the patch's own (always counted).
+    struct RingPoint {
+      Vec3 x, n;
+      double r;
+      bool own;
+    };
+    std::vector<RingPoint> ringPointsA, ringPointsB;
     std::vector<std::uint32_t> mark;
     std::uint32_t stamp = 0;
     std::vector<ParticleId> aheadA, aheadB;
