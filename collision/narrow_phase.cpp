@@ -203,13 +203,18 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   // each group's patches of the last run, if it may take them over
   match_.assign(groups, -1);
   weights_.resize(groups);
+  // (groups mostly come in key order, like the cache: a cursor walks forward, a binary search when not)
+  auto cursor = cache_.groups.begin();
   for (std::size_t gi = 0; gi < groups; ++gi) {
     const ContactGroup& g = contacts.groups[gi];
     weights_[gi] = g.count;
     if (!settings_.reuse || !cacheable(in, g)) continue;
     const GroupKey key = keyOf(g);
-    const auto it = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), key,
-                                     [](const CachedGroup& c, const GroupKey& k) { return c.key < k; });
+    if (cursor != cache_.groups.begin() && !(std::prev(cursor)->key < key))
+      cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), key,
+                                [](const CachedGroup& c, const GroupKey& k) { return c.key < k; });
+    while (cursor != cache_.groups.end() && cursor->key < key) ++cursor;
+    const auto it = cursor;
     if (it != cache_.groups.end() && it->key == key && reusable(in, contacts, g, *it))
       match_[gi] = static_cast<std::int32_t>(it - cache_.groups.begin());
   }

@@ -31,7 +31,8 @@ struct ContactPatch {
   Vec3 normal = Vec3::UnitZ();    ///< unit, from A towards B (into the plane), world
   Vec3 point = Vec3::Zero();      ///< the deepest contact point; the plane passes through it [m]
   double depth = 0.0;             ///< largest overlap along the normal [m]
-  double margin = 0.0;            ///< validation margin of the chosen normal [m] (negative: unvalidated)
+  double margin = 0.0;            ///< validation margin of the chosen normal [m] (negative: unvalidated), as
+                                  ///< computed: a reused patch keeps the margin of the step it was made in
   PlaneCase planeCase = PlaneCase::VertexFace11;
   NormalSource source = NormalSource::CentreLine;
   bool validated = false;

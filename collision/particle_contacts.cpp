@@ -206,10 +206,11 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
     const BodyState& sb = bodies.state[b.index()];
     const Quat relRotation = sa.orientation.conjugate() * sb.orientation;
     const Vec3 relPosition = sa.orientation.conjugate() * (sb.position - sa.position);
-    const auto it = std::lower_bound(cache_.lists.begin(), cache_.lists.end(), std::make_pair(a.value, b.value),
-                                     [](const PairList& l, const std::pair<std::uint32_t, std::uint32_t>& k) {
-                                       return std::make_pair(l.a, l.b) < k;
-                                     });
+    // (the body pairs come sorted, like the lists: a worker's cursor only moves forward)
+    const auto key = std::make_pair(a.value, b.value);
+    while (w.cursor < cache_.lists.size() && std::make_pair(cache_.lists[w.cursor].a, cache_.lists[w.cursor].b) < key)
+      ++w.cursor;
+    const auto it = cache_.lists.begin() + static_cast<std::ptrdiff_t>(w.cursor);
     bool reuse = it != cache_.lists.end() && it->a == a.value && it->b == b.value;
     if (reuse) {
       // how far any particle pair's distance can have changed since the list was made
@@ -234,7 +235,7 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
     } else {
       list.relRotation = relRotation;
       list.relPosition = relPosition;
-      list.skin = 0.25 * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius);
+      list.skin = 0.1 * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius);
       w.found.clear();
       searchPair(p, bodies, a, b, boxes, list.skin, out, &w.found);
       sortGroup(out, first);
@@ -303,6 +304,17 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
   }
   const auto work = [&](int worker, std::size_t begin, std::size_t end) {
     Worker& w = workers_[static_cast<std::size_t>(worker)];
+    // where this range's pairs start among the last step's lists
+    w.cursor = 0;
+    if (begin < end) {
+      const auto first = std::make_pair(pairs[begin].a.value, pairs[begin].b.value);
+      w.cursor = static_cast<std::size_t>(
+          std::lower_bound(cache_.lists.begin(), cache_.lists.end(), first,
+                           [](const PairList& l, const std::pair<std::uint32_t, std::uint32_t>& k) {
+                             return std::make_pair(l.a, l.b) < k;
+                           }) -
+          cache_.lists.begin());
+    }
     for (std::size_t i = begin; i < end; ++i) bodyPair(particles, bodies, pairs[i].a, pairs[i].b, boxes, w);
   };
   if (pool && pool->worthSharing(pairs.size(), 512)) pool->run(pairs.size(), work);

@@ -139,6 +139,7 @@ class ContactFinder {
     PairCache cache;
     std::vector<std::pair<ParticleId, ParticleId>> found;
     std::size_t reused = 0;
+    std::size_t cursor = 0;  // the last step's lists are walked in step with the (sorted) body pairs
   };
 
   /// Grid search of a body pair: contacts into `out` (unsorted); with `listed`, every pair within the

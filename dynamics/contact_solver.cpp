@@ -60,8 +60,9 @@ inline void scatter(V4* base, const std::array<std::uint32_t, 4>& slot, const F4
   for (int i = 0; i < 4; ++i) base[slot[static_cast<std::size_t>(i)]] = V4(x[i], y[i], z[i], 0.0f);
 }
 
-/// Slot of a key in a power-of-two table (Fibonacci hashing).
-inline std::uint64_t hashSlot(std::uint64_t key, std::uint64_t mask) { return (key * 0x9E3779B97F4A7C15ull >> 17) & mask; }
+/// Slot of a key in a table of 2^bits entries (Fibonacci hashing: the top bits of the product, which
+/// depend on every bit of the key; a key's two particle ids live in its two halves).
+inline std::uint64_t hashSlot(std::uint64_t key, int bits) { return (key * 0x9E3779B97F4A7C15ull) >> (64 - bits); }
 
 }  // namespace
 
@@ -338,7 +339,7 @@ bool ContactSolver::positionPart(std::size_t part) {
 
 const ContactSolver::Cached* ContactSolver::cached(std::uint64_t key) const {
   if (table_.empty()) return nullptr;
-  for (std::uint64_t i = hashSlot(key, tableMask_);; i = (i + 1) & tableMask_) {
+  for (std::uint64_t i = hashSlot(key, tableBits_);; i = (i + 1) & tableMask_) {
     const std::uint32_t k = table_[i];
     if (k == kEmpty) return nullptr;
     if (cacheKeys_[k] == key) return &cache_[k];
@@ -354,10 +355,11 @@ void ContactSolver::remember() {
   while (size < 2 * rows_.size()) size *= 2;
   table_.assign(size, kEmpty);
   tableMask_ = size - 1;
+  tableBits_ = std::countr_zero(size);
   for (std::size_t k = 0; k < rows_.size(); ++k) {
     const Row& r = rows_[k];
     cache_[k] = Cached{r.lambdaN, r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d};
-    for (std::uint64_t i = hashSlot(keys_[k], tableMask_);; i = (i + 1) & tableMask_) {
+    for (std::uint64_t i = hashSlot(keys_[k], tableBits_);; i = (i + 1) & tableMask_) {
       if (table_[i] == kEmpty) {
         table_[i] = static_cast<std::uint32_t>(k);
         break;

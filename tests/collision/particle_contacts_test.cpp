@@ -8,6 +8,9 @@
 #include "collision/reference/fcl_adapter.hpp"
 #include "engine/builders/fill.hpp"
 #include "engine/builders/obj_reader.hpp"
+#include "collision/narrow_phase.hpp"
+#include "engine/scene/scene_build.hpp"
+#include "engine/scene/scene_loader.hpp"
 #include "engine/world.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -291,6 +294,92 @@ bodies:
 )");
   w.bodyState(BodyId(0u)).linearVelocity = Vec3(std::nan(""), 0, 0);
   EXPECT_EQ(w.step(), StepStatus::NonFinite);
+}
+
+}  // namespace
+}  // namespace volpar
+
+namespace volpar {
+namespace {
+
+// Temporal coherence, checked step by step on a falling and settling pile: the world's contact finder
+// reuses particle candidate lists and its narrow phase reuses planes; a finder and a narrow phase of the
+// test's own recompute everything from scratch on the same state.
+TEST(TemporalCoherence, ReusedCandidateListsGiveExactlyTheContactsOfAFreshSearch) {
+  auto desc = loadScene(test::sourcePath("scenes/bench/pile-125.yaml"));
+  ASSERT_TRUE(desc.ok()) << desc.error().toString();
+  auto built = buildScene(*desc);
+  ASSERT_TRUE(built.ok());
+  World& w = built->world;
+  ContactFinder fresh;
+  for (std::size_t i = 0; i < w.bodies().size(); ++i) fresh.addBody(BodyId(i), w.particles(), w.bodies());
+  fresh.setReuse(false);
+  fresh.setMargin(w.settings().contactMargin);
+  ContactSet set;
+  std::size_t reused = 0, compared = 0;
+  for (int step = 0; step < 600; ++step) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    reused += w.contactFinder().reusedPairs();
+    fresh.find(w.particles(), w.bodies(), w.connectors(), w.bodyPairs(), w.planePairs(), w.planes(), w.bodyBoxes(), set);
+    const ContactSet& got = w.contacts();
+    ASSERT_EQ(got.contacts.size(), set.contacts.size()) << "step " << step;
+    ASSERT_EQ(got.groups.size(), set.groups.size()) << "step " << step;
+    for (std::size_t i = 0; i < set.contacts.size(); ++i) {
+      const ParticleContact &x = got.contacts[i], &y = set.contacts[i];
+      ASSERT_TRUE(x.a == y.a && x.b == y.b && x.plane == y.plane) << "step " << step << " contact " << i;
+      ASSERT_EQ(x.depth, y.depth);
+      ASSERT_EQ(x.point, y.point);
+      ASSERT_EQ(x.normal, y.normal);
+    }
+    compared += set.contacts.size();
+  }
+  EXPECT_GT(compared, 100000u);
+  EXPECT_GT(reused, 50000u) << "the candidate lists were hardly ever reused: nothing was tested";
+}
+
+TEST(TemporalCoherence, ReusedPlanesSeparateAsWellAsFreshOnes) {
+  auto desc = loadScene(test::sourcePath("scenes/bench/pile-125.yaml"));
+  ASSERT_TRUE(desc.ok()) << desc.error().toString();
+  auto built = buildScene(*desc);
+  ASSERT_TRUE(built.ok());
+  World& w = built->world;
+  NarrowPhase fresh;
+  PlaneSettings settings = fresh.settings();
+  settings.reuse = false;
+  fresh.setSettings(settings);
+  PatchSet patches;
+  std::size_t reused = 0, compared = 0, close = 0, lostValidity = 0, depthApart = 0, touching = 0;
+  double worstDepth = 0.0;
+  for (int step = 0; step < 600; ++step) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    reused += w.stats().patchesReused;
+    fresh.run(w.narrowPhaseInput(), w.contacts(), patches);
+    const PatchSet& got = w.patches();
+    // the same patches (contact membership does not depend on reuse)
+    ASSERT_EQ(got.patches.size(), patches.patches.size()) << "step " << step;
+    ASSERT_EQ(got.contacts, patches.contacts) << "step " << step;
+    for (std::size_t i = 0; i < patches.patches.size(); ++i) {
+      const ContactPatch &x = got.patches[i], &y = patches.patches[i];
+      ++compared;
+      if (x.normal.dot(y.normal) > std::cos(0.02)) ++close;
+      if (y.validated && !x.validated) ++lostValidity;
+      // what the solver sees: the deepest overlap along the normal, where the fresh plane has one
+      if (y.depth > 0.0) {
+        const double dd = std::abs(x.depth - y.depth);
+        worstDepth = std::max(worstDepth, dd);
+        if (dd > 1e-3) ++depthApart;
+        ++touching;
+      }
+    }
+  }
+  EXPECT_GT(reused, compared / 2) << "planes were hardly ever reused: nothing was tested";
+  EXPECT_EQ(lostValidity, 0u);
+  // nearly every normal is the fresh one within the reuse tolerance (the rest: a near tie between two
+  // candidates, or the centre line of a lone speculative pair that moved sideways within the tolerance)
+  EXPECT_GT(static_cast<double>(close), 0.97 * static_cast<double>(compared));
+  // and nearly every touching patch has the fresh plane's depth within 1 mm (2 % of the radius)
+  EXPECT_GT(touching, 10000u);
+  EXPECT_LT(static_cast<double>(depthApart), 0.002 * static_cast<double>(touching)) << "worst " << worstDepth << " m";
 }
 
 }  // namespace
