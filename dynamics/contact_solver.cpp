@@ -339,7 +339,7 @@ bool ContactSolver::positionPart(std::size_t part) {
 
 const ContactSolver::Cached* ContactSolver::cached(std::uint64_t key) const {
   if (table_.empty()) return nullptr;
-  for (std::uint64_t i = hashSlot(key, tableBits_);; i = (i + 1) & tableMask_) {
+  for (std::uint64_t i = hashSlot(key, tableBits_);; i = (i + 1) & (table_.size() - 1)) {
     const std::uint32_t k = table_[i];
     if (k == kEmpty) return nullptr;
     if (cacheKeys_[k] == key) return &cache_[k];
@@ -349,22 +349,21 @@ const ContactSolver::Cached* ContactSolver::cached(std::uint64_t key) const {
 void ContactSolver::remember() {
   // a key can repeat when two points share a particle pair (raw normals never, planes never): the first
   // in solving order is found
-  cacheKeys_.assign(keys_.begin(), keys_.end());
+  std::swap(cacheKeys_, keys_);  // (keys_ is rewritten by the next step's preparation)
   cache_.resize(rows_.size());
   std::size_t size = 16;
   while (size < 2 * rows_.size()) size *= 2;
   table_.assign(size, kEmpty);
-  tableMask_ = size - 1;
   tableBits_ = std::countr_zero(size);
   for (std::size_t k = 0; k < rows_.size(); ++k) {
     const Row& r = rows_[k];
     cache_[k] = Cached{r.lambdaN, r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d};
-    for (std::uint64_t i = hashSlot(keys_[k], tableBits_);; i = (i + 1) & tableMask_) {
+    for (std::uint64_t i = hashSlot(cacheKeys_[k], tableBits_);; i = (i + 1) & (table_.size() - 1)) {
       if (table_[i] == kEmpty) {
         table_[i] = static_cast<std::uint32_t>(k);
         break;
       }
-      if (cacheKeys_[table_[i]] == keys_[k]) break;
+      if (cacheKeys_[table_[i]] == cacheKeys_[k]) break;
     }
   }
 }

@@ -171,7 +171,6 @@ class ContactSolver {
   std::vector<std::uint64_t> cacheKeys_;  // by row of the last step
   std::vector<Cached> cache_;             // by row of the last step
   std::vector<std::uint32_t> table_;      // rows of the last step; a power of two long, at most half full
-  std::uint64_t tableMask_ = 0;
   int tableBits_ = 0;
   std::vector<Vec3> impulses_;
   double totalNormalImpulse_ = 0.0;

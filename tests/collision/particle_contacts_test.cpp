@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <optional>
 #include <random>
 
 #include "collision/reference/fcl_adapter.hpp"
@@ -302,14 +303,27 @@ bodies:
 namespace volpar {
 namespace {
 
+/// pile-125 as built from its scene file (the tests step it themselves); empty after a failure.
+std::optional<BuiltScene> pile125() {
+  auto desc = loadScene(test::sourcePath("scenes/bench/pile-125.yaml"));
+  if (!desc.ok()) {
+    ADD_FAILURE() << desc.error().toString();
+    return std::nullopt;
+  }
+  auto built = buildScene(*desc);
+  if (!built.ok()) {
+    ADD_FAILURE() << built.error().toString();
+    return std::nullopt;
+  }
+  return std::move(*built);
+}
+
 // Temporal coherence, checked step by step on a falling and settling pile: the world's contact finder
 // reuses particle candidate lists and its narrow phase reuses planes; a finder and a narrow phase of the
 // test's own recompute everything from scratch on the same state.
 TEST(TemporalCoherence, ReusedCandidateListsGiveExactlyTheContactsOfAFreshSearch) {
-  auto desc = loadScene(test::sourcePath("scenes/bench/pile-125.yaml"));
-  ASSERT_TRUE(desc.ok()) << desc.error().toString();
-  auto built = buildScene(*desc);
-  ASSERT_TRUE(built.ok());
+  auto built = pile125();
+  ASSERT_TRUE(built);
   World& w = built->world;
   ContactFinder fresh;
   for (std::size_t i = 0; i < w.bodies().size(); ++i) fresh.addBody(BodyId(i), w.particles(), w.bodies());
@@ -338,10 +352,8 @@ TEST(TemporalCoherence, ReusedCandidateListsGiveExactlyTheContactsOfAFreshSearch
 }
 
 TEST(TemporalCoherence, ReusedPlanesSeparateAsWellAsFreshOnes) {
-  auto desc = loadScene(test::sourcePath("scenes/bench/pile-125.yaml"));
-  ASSERT_TRUE(desc.ok()) << desc.error().toString();
-  auto built = buildScene(*desc);
-  ASSERT_TRUE(built.ok());
+  auto built = pile125();
+  ASSERT_TRUE(built);
   World& w = built->world;
   NarrowPhase fresh;
   PlaneSettings settings = fresh.settings();

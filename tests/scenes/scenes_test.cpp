@@ -21,6 +21,26 @@ std::vector<std::string> sceneFiles() {
   return files;
 }
 
+/// A test name from a scene path: every character other than a letter or digit becomes '_'.
+std::string paramName(const ::testing::TestParamInfo<std::string>& info) {
+  std::string name = info.param;
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  return name;
+}
+
+/// Two trajectory files with the same frames: the same count (more than `minFrames`) and the same
+/// particle positions in each.
+void expectSameFrames(const std::string& a, const std::string& b, std::size_t minFrames) {
+  auto ra = H5mdReader::open(a);
+  auto rb = H5mdReader::open(b);
+  ASSERT_TRUE(ra.ok() && rb.ok());
+  const std::size_t frames = (*ra)->summary()->frames;
+  ASSERT_EQ(frames, (*rb)->summary()->frames);
+  ASSERT_GT(frames, minFrames);
+  for (std::size_t t = 0; t < frames; ++t) EXPECT_EQ((*ra)->positions(t).value(), (*rb)->positions(t).value());
+}
+
 class EveryScene : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(EveryScene, LoadsBuildsAndRuns) {
@@ -35,12 +55,7 @@ TEST_P(EveryScene, LoadsBuildsAndRuns) {
   for (std::int64_t i = 0; i < steps; ++i) ASSERT_EQ(w.step(), StepStatus::Ok) << "step " << i;
 }
 
-INSTANTIATE_TEST_SUITE_P(Scenes, EveryScene, ::testing::ValuesIn(sceneFiles()), [](const auto& param) {
-  std::string name = param.param;
-  for (char& c : name)
-    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-  return name;
-});
+INSTANTIATE_TEST_SUITE_P(Scenes, EveryScene, ::testing::ValuesIn(sceneFiles()), paramName);
 
 std::string readBytes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
@@ -58,12 +73,7 @@ TEST(Determinism, SameSceneTwiceGivesIdenticalTrajectoryFiles) {
   ASSERT_GT(a.size(), 10000u);
   EXPECT_TRUE(a == b) << "trajectory files differ";
   // and the data itself, frame by frame
-  auto ra = H5mdReader::open(dir + "/a.h5");
-  auto rb = H5mdReader::open(dir + "/b.h5");
-  ASSERT_TRUE(ra.ok() && rb.ok());
-  const std::size_t frames = (*ra)->summary()->frames;
-  ASSERT_GT(frames, 10u);
-  for (std::size_t t = 0; t < frames; ++t) EXPECT_EQ((*ra)->positions(t).value(), (*rb)->positions(t).value());
+  expectSameFrames(dir + "/a.h5", dir + "/b.h5", 10);
 }
 
 // The threaded step computes exactly what the single-threaded one does: every particle's position and
@@ -101,12 +111,7 @@ TEST_P(ThreadedStep, GivesBitIdenticalStates) {
 INSTANTIATE_TEST_SUITE_P(Scenes, ThreadedStep,
                          ::testing::Values("bench/pile-125.yaml", "examples/wall_break.yaml", "examples/jelly.yaml",
                                            "examples/peg_in_slot.yaml", "examples/bridge.yaml"),
-                         [](const auto& param) {
-                           std::string name = param.param;
-                           for (char& c : name)
-                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-                           return name;
-                         });
+                         paramName);
 
 TEST(Determinism, ThreadedRunWritesTheSameTrajectory) {
   const std::string dir = test::tempDir();
@@ -116,13 +121,7 @@ TEST(Determinism, ThreadedRunWritesTheSameTrajectory) {
                                     " -o " + dir + "/t" + threads + ".h5");
     ASSERT_EQ(r.exitCode, 0) << r.output;
   }
-  auto ra = H5mdReader::open(dir + "/t1.h5");
-  auto rb = H5mdReader::open(dir + "/t2.h5");
-  ASSERT_TRUE(ra.ok() && rb.ok());
-  const std::size_t frames = (*ra)->summary()->frames;
-  ASSERT_EQ(frames, (*rb)->summary()->frames);
-  ASSERT_GT(frames, 2u);
-  for (std::size_t t = 0; t < frames; ++t) EXPECT_EQ((*ra)->positions(t).value(), (*rb)->positions(t).value());
+  expectSameFrames(dir + "/t1.h5", dir + "/t2.h5", 2);
   EXPECT_TRUE(readBytes(dir + "/t1.h5") == readBytes(dir + "/t2.h5")) << "trajectory files differ";
 }
 
