@@ -56,6 +56,24 @@ TEST(Cli, OverridesStepsAndCadence) {
   EXPECT_NE(both.output.find("excludes"), std::string::npos) << both.output;
 }
 
+TEST(Cli, ThreadsAreReportedAndOutOfRangeCountsRejected) {
+  const std::string dir = test::tempDir();
+  const std::string scene = writeFile(dir + "/fall.yaml", kFall);
+  const auto r = test::runCommand(test::volparBinary() + " run " + scene + " -o " + dir + "/t.h5 --threads 2 --json");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("\"threads\": 2"), std::string::npos) << r.output;
+  const std::string out = writeFile(dir + "/keep.h5", "precious");
+  for (const char* bad : {"0", "-1", "1000", "two"}) {
+    const auto b = test::runCommand(test::volparBinary() + " run " + scene + " -o " + out + " --threads " + bad);
+    EXPECT_NE(b.exitCode, 0) << bad;
+    EXPECT_NE(b.output.find("--threads"), std::string::npos) << bad << "\n" << b.output;
+  }
+  std::ifstream in(out);
+  std::string content;
+  std::getline(in, content);
+  EXPECT_EQ(content, "precious");
+}
+
 TEST(Cli, BadSceneFailsWithLocationAndKeepsExistingOutput) {
   const std::string dir = test::tempDir();
   const std::string scene = writeFile(dir + "/bad.yaml", "dt: 0.01\nsteps: 5\nbodies:\n  - shape: {sphere: {radius: -1}}\n    fill: {radius: 0.1}\n");
