@@ -4,6 +4,10 @@
 #include <bit>
 #include <cmath>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace volpar {
 
 namespace {
@@ -258,6 +262,22 @@ void ContactSolver::unpack(std::size_t part) {
 
 namespace {
 
+/// Lane by lane: a where x > 0 or y > 0, else b. (Eigen 3.4's select() goes one coefficient at a time, with
+/// a branch per lane; this stays in vector registers.)
+inline F4 whereEitherPositive(const F4& x, const F4& y, const F4& a, const F4& b) {
+#if defined(__SSE2__)
+  const __m128 zero = _mm_setzero_ps();
+  const __m128 mask = _mm_or_ps(_mm_cmpgt_ps(_mm_load_ps(x.data()), zero), _mm_cmpgt_ps(_mm_load_ps(y.data()), zero));
+  F4 out;
+  _mm_store_ps(out.data(), _mm_or_ps(_mm_and_ps(mask, _mm_load_ps(a.data())), _mm_andnot_ps(mask, _mm_load_ps(b.data()))));
+  return out;
+#else
+  F4 out;
+  for (int i = 0; i < 4; ++i) out[i] = x[i] > 0.0f || y[i] > 0.0f ? a[i] : b[i];
+  return out;
+#endif
+}
+
 /// J v of an axis, lane by lane.
 struct Motion {
   F4 vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz;
@@ -301,7 +321,8 @@ void ContactSolver::velocityPart(std::size_t part) {
     F4 l2 = old2 - b.massT2 * m.along(b.t2);
     const F4 limit = b.friction * b.lambdaN;
     const F4 mag2 = l1 * l1 + l2 * l2;
-    const F4 scale = (mag2 > limit * limit).select(limit / mag2.max(1e-30f).sqrt(), F4::Ones());
+    // (limit / |l| where that is below 1: the cone's bound, without a lane-by-lane select)
+    const F4 scale = (limit / mag2.max(1e-30f).sqrt()).min(1.0f);
     l1 *= scale;
     l2 *= scale;
     b.lambdaT1 = l1;
@@ -328,7 +349,7 @@ bool ContactSolver::positionPart(std::size_t part) {
     Motion m;
     m.load(v, w, b.a, b.b);
     const F4 old = b.lambdaP;
-    b.lambdaP = active.select((old + b.massN * (b.biasP - m.along(b.n))).max(0.0f), old);
+    b.lambdaP = whereEitherPositive(b.biasP, b.lambdaP, (old + b.massN * (b.biasP - m.along(b.n))).max(0.0f), old);
     const F4 change = b.lambdaP - old;
     moved = moved || (change.abs() > tolerance * b.massN).any();
     m.push(b.n, change, b.invMassA, b.invMassB);

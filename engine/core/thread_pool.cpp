@@ -23,6 +23,17 @@ void SpinBarrier::wait() {
   }
 }
 
+namespace {
+
+/// A short wait inside a spin loop (lets the other hardware thread of a core run).
+inline void relax() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_ia32_pause();
+#endif
+}
+
+}  // namespace
+
 ThreadPool::ThreadPool(int workers) : workers_(std::max(1, workers)) {
   for (int w = 1; w < workers_; ++w) threads_.emplace_back([this, w] { loop(w); });
 }
@@ -30,7 +41,8 @@ ThreadPool::ThreadPool(int workers) : workers_(std::max(1, workers)) {
 ThreadPool::~ThreadPool() {
   {
     const std::lock_guard lock(mutex_);
-    stop_ = true;
+    stop_.store(true, std::memory_order_release);
+    generation_.fetch_add(1, std::memory_order_acq_rel);
   }
   start_.notify_all();
   for (std::thread& t : threads_) t.join();
@@ -62,39 +74,47 @@ void ThreadPool::run(std::size_t n, const std::function<void(int, std::size_t, s
     f(0, 0, n);
     return;
   }
+  split(n, weights, bounds_);
+  job_ = &f;
+  pending_.store(workers_ - 1, std::memory_order_relaxed);
   {
+    // (under the lock: a worker about to sleep checks the generation under it too, so none misses a job)
     const std::lock_guard lock(mutex_);
-    split(n, weights, bounds_);
-    job_ = &f;
-    pending_ = workers_ - 1;
-    ++generation_;
+    generation_.fetch_add(1, std::memory_order_release);
   }
-  start_.notify_all();
+  if (sleepers_.load(std::memory_order_acquire) > 0) start_.notify_all();
   if (bounds_[0] < bounds_[1]) f(0, bounds_[0], bounds_[1]);
-  std::unique_lock lock(mutex_);
-  done_.wait(lock, [this] { return pending_ == 0; });
+  // the others' ranges are about as long as this one: spin, then give the processor away
+  for (int spins = 0; pending_.load(std::memory_order_acquire) != 0; ++spins) {
+    if (spins < kSpins) relax();
+    else std::this_thread::yield();
+  }
   job_ = nullptr;
 }
 
 void ThreadPool::loop(int worker) {
   std::size_t seen = 0;
   for (;;) {
-    const std::function<void(int, std::size_t, std::size_t)>* job;
-    std::size_t begin, end;
-    {
+    // the step hands out work many times in quick succession: spin a while before sleeping, since waking
+    // a sleeping thread costs more than most of the ranges it would run
+    std::size_t now = generation_.load(std::memory_order_acquire);
+    for (int spins = 0; now == seen && spins < kSpins; ++spins) {
+      relax();
+      now = generation_.load(std::memory_order_acquire);
+    }
+    if (now == seen) {
       std::unique_lock lock(mutex_);
-      start_.wait(lock, [&] { return stop_ || generation_ != seen; });
-      if (stop_) return;
-      seen = generation_;
-      job = job_;
-      begin = bounds_[static_cast<std::size_t>(worker)];
-      end = bounds_[static_cast<std::size_t>(worker) + 1];
+      sleepers_.fetch_add(1, std::memory_order_acq_rel);
+      start_.wait(lock, [&] { return generation_.load(std::memory_order_acquire) != seen; });
+      sleepers_.fetch_sub(1, std::memory_order_acq_rel);
+      now = generation_.load(std::memory_order_acquire);
     }
-    if (begin < end) (*job)(worker, begin, end);
-    {
-      const std::lock_guard lock(mutex_);
-      if (--pending_ == 0) done_.notify_one();
-    }
+    seen = now;
+    if (stop_.load(std::memory_order_acquire)) return;
+    const std::size_t begin = bounds_[static_cast<std::size_t>(worker)];
+    const std::size_t end = bounds_[static_cast<std::size_t>(worker) + 1];
+    if (begin < end) (*job_)(worker, begin, end);
+    pending_.fetch_sub(1, std::memory_order_acq_rel);
   }
 }
 

@@ -71,11 +71,15 @@ class ThreadPool {
   int workers_ = 1;
   bool shareAll_ = false;
   std::vector<std::thread> threads_;
+  /// Pause instructions a waiting thread spins through before it sleeps (workers) or yields (the caller):
+  /// about a millisecond, longer than the gaps between the runs of one step, short beside a frame.
+  static constexpr int kSpins = 20000;
   std::mutex mutex_;
-  std::condition_variable start_, done_;
-  std::size_t generation_ = 0;
-  int pending_ = 0;
-  bool stop_ = false;
+  std::condition_variable start_;
+  std::atomic<std::size_t> generation_{0};  // one more for every run (and for stopping)
+  std::atomic<int> pending_{0};             // workers still on the current run
+  std::atomic<int> sleepers_{0};            // workers waiting on start_
+  std::atomic<bool> stop_{false};
   const std::function<void(int, std::size_t, std::size_t)>* job_ = nullptr;
   std::vector<std::size_t> bounds_;
 };
