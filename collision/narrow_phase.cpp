@@ -200,24 +200,32 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
     w.cache.clear();
     if (w.mark.size() < in.particles->size()) w.mark.resize(in.particles->size(), 0);
   }
-  // each group's patches of the last run, if it may take them over
-  match_.assign(groups, -1);
+  // each group's patches of the last run, if it may take them over, and the group's cost (taking patches
+  // over costs a small part of computing them), which balances the workers' shares below
+  match_.resize(groups);
   weights_.resize(groups);
-  // (groups mostly come in key order, like the cache: a cursor walks forward, a binary search when not)
-  auto cursor = cache_.groups.begin();
-  for (std::size_t gi = 0; gi < groups; ++gi) {
-    const ContactGroup& g = contacts.groups[gi];
-    weights_[gi] = g.count;
-    if (!settings_.reuse || !cacheable(in, g)) continue;
-    const GroupKey key = keyOf(g);
-    if (cursor != cache_.groups.begin() && !(std::prev(cursor)->key < key))
-      cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), key,
-                                [](const CachedGroup& c, const GroupKey& k) { return c.key < k; });
-    while (cursor != cache_.groups.end() && cursor->key < key) ++cursor;
-    const auto it = cursor;
-    if (it != cache_.groups.end() && it->key == key && reusable(in, contacts, g, *it))
-      match_[gi] = static_cast<std::int32_t>(it - cache_.groups.begin());
-  }
+  const auto byKey = [](const CachedGroup& c, const GroupKey& k) { return c.key < k; };
+  const auto match = [&](int, std::size_t begin, std::size_t end) {
+    // (groups mostly come in key order, like the cache: a cursor walks forward, a binary search when not)
+    auto cursor = cache_.groups.begin();
+    if (begin < end) cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), keyOf(contacts.groups[begin]), byKey);
+    for (std::size_t gi = begin; gi < end; ++gi) {
+      const ContactGroup& g = contacts.groups[gi];
+      match_[gi] = -1;
+      weights_[gi] = g.count * kFreshWeight;
+      if (!settings_.reuse || !cacheable(in, g)) continue;
+      const GroupKey key = keyOf(g);
+      if (cursor != cache_.groups.begin() && !(std::prev(cursor)->key < key))
+        cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), key, byKey);
+      while (cursor != cache_.groups.end() && cursor->key < key) ++cursor;
+      if (cursor != cache_.groups.end() && cursor->key == key && reusable(in, contacts, g, *cursor)) {
+        match_[gi] = static_cast<std::int32_t>(cursor - cache_.groups.begin());
+        weights_[gi] = g.count;
+      }
+    }
+  };
+  if (pool && pool->worthSharing(groups, 512)) pool->run(groups, match);
+  else match(0, 0, groups);
   const auto work = [&](int worker, std::size_t begin, std::size_t end) {
     Worker& w = workers_[static_cast<std::size_t>(worker)];
     for (std::size_t gi = begin; gi < end; ++gi) {

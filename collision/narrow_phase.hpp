@@ -205,7 +205,9 @@ class NarrowPhase {
   std::vector<Worker> workers_;
   Cache cache_;                        // what the last run computed or reused, for the next
   std::vector<std::int32_t> match_;    // per group of this run: its entry in cache_, or -1
-  std::vector<std::size_t> weights_;   // per group: its contact count (balances the workers)
+  std::vector<std::size_t> weights_;   // per group: its cost, to balance the workers
+  /// Weight of a contact in a group whose patches are computed, against one whose patches are taken over.
+  static constexpr std::size_t kFreshWeight = 16;
 };
 
 /// World-frame outward normal of a surface particle from the cache (zero for interior particles).

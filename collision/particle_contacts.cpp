@@ -294,11 +294,14 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
   out.clear();
   if (adjacencyDirty_) rebuildAdjacency(particles, connectors);
   for (const BodyId id : deformables_) buildGrid(grids_[id.index()], bodies.info[id.index()].particles, particles.position, particles);
-  // body pairs, shared among the workers in contiguous ranges and merged in order
-  const std::size_t workers = pool ? static_cast<std::size_t>(pool->workers()) : 1;
+  // body pairs, then bodies on planes, each shared among the workers in contiguous ranges and merged in
+  // order: all body pairs' contacts first, then all planes'
+  const bool shared = pool && pool->worthSharing(pairs.size(), 512);
+  const std::size_t workers = shared ? static_cast<std::size_t>(pool->workers()) : 1;
   if (workers_.size() < workers) workers_.resize(workers);
   for (std::size_t k = 0; k < workers; ++k) {
     workers_[k].out.clear();
+    workers_[k].planes.clear();
     workers_[k].cache.clear();
     workers_[k].reused = 0;
   }
@@ -316,33 +319,69 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
           cache_.lists.begin());
     }
     for (std::size_t i = begin; i < end; ++i) bodyPair(particles, bodies, pairs[i].a, pairs[i].b, boxes, w);
+    const auto k = static_cast<std::size_t>(worker);
+    for (std::size_t i = planePairs.size() * k / workers; i < planePairs.size() * (k + 1) / workers; ++i)
+      planeContacts(particles, bodies, planePairs[i].body, planePairs[i].plane, planes[planePairs[i].plane.index()], w.planes);
   };
-  if (pool && pool->worthSharing(pairs.size(), 512)) pool->run(pairs.size(), work);
+  if (shared) pool->run(workers, [&](int worker, std::size_t, std::size_t) {
+    const auto k = static_cast<std::size_t>(worker);
+    work(worker, pairs.size() * k / workers, pairs.size() * (k + 1) / workers);
+  });
   else work(0, 0, pairs.size());
-  cache_.clear();
+  // the workers' outputs at their places, copied by the workers
   reusedPairs_ = 0;
+  std::size_t contacts = 0, groups = 0, lists = 0, listed = 0;
   for (std::size_t k = 0; k < workers; ++k) {
-    const Worker& w = workers_[k];
-    const auto base = static_cast<std::uint32_t>(out.contacts.size());
-    out.contacts.insert(out.contacts.end(), w.out.contacts.begin(), w.out.contacts.end());
-    for (ContactGroup g : w.out.groups) {
-      g.first += base;
-      out.groups.push_back(g);
-    }
-    const auto pairBase = static_cast<std::uint32_t>(cache_.pairs.size());
-    for (PairList l : w.cache.lists) {
-      l.first += pairBase;
-      cache_.lists.push_back(l);
-    }
-    cache_.pairs.insert(cache_.pairs.end(), w.cache.pairs.begin(), w.cache.pairs.end());
+    Worker& w = workers_[k];
+    w.contactBase = contacts;
+    w.groupBase = groups;
+    w.listBase = lists;
+    w.pairBase = listed;
+    contacts += w.out.contacts.size();
+    groups += w.out.groups.size();
+    lists += w.cache.lists.size();
+    listed += w.cache.pairs.size();
     reusedPairs_ += w.reused;
   }
+  for (std::size_t k = 0; k < workers; ++k) {
+    Worker& w = workers_[k];
+    w.planeContactBase = contacts;
+    w.planeGroupBase = groups;
+    contacts += w.planes.contacts.size();
+    groups += w.planes.groups.size();
+  }
+  out.contacts.resize(contacts);
+  out.groups.resize(groups);
+  cache_.lists.resize(lists);
+  cache_.pairs.resize(listed);
+  const auto place = [&](const ContactSet& from, std::size_t contactBase, std::size_t groupBase) {
+    std::copy(from.contacts.begin(), from.contacts.end(), out.contacts.begin() + static_cast<std::ptrdiff_t>(contactBase));
+    for (std::size_t i = 0; i < from.groups.size(); ++i) {
+      ContactGroup g = from.groups[i];
+      g.first += static_cast<std::uint32_t>(contactBase);
+      out.groups[groupBase + i] = g;
+    }
+  };
+  const auto copy = [&](int, std::size_t begin, std::size_t end) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const Worker& w = workers_[k];
+      place(w.out, w.contactBase, w.groupBase);
+      place(w.planes, w.planeContactBase, w.planeGroupBase);
+      for (std::size_t i = 0; i < w.cache.lists.size(); ++i) {
+        PairList l = w.cache.lists[i];
+        l.first += static_cast<std::uint32_t>(w.pairBase);
+        cache_.lists[w.listBase + i] = l;
+      }
+      std::copy(w.cache.pairs.begin(), w.cache.pairs.end(), cache_.pairs.begin() + static_cast<std::ptrdiff_t>(w.pairBase));
+    }
+  };
+  if (shared) pool->run(workers, copy);
+  else copy(0, 0, workers);
   // lookups need the lists in key order (body pairs come sorted; if a caller's do not, nothing is reused)
   if (!std::is_sorted(cache_.lists.begin(), cache_.lists.end(), [](const PairList& x, const PairList& y) {
         return std::make_pair(x.a, x.b) < std::make_pair(y.a, y.b);
       }))
     cache_.clear();
-  for (const BodyPlanePair& pp : planePairs) planeContacts(particles, bodies, pp.body, pp.plane, planes[pp.plane.index()], out);
   for (const BodyId id : deformables_) selfContacts(particles, id, out);
 }
 

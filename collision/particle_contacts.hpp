@@ -135,8 +135,11 @@ class ContactFinder {
   };
   /// Output and cache of one worker thread, merged in order afterwards.
   struct Worker {
-    ContactSet out;
+    ContactSet out;     // of body pairs
+    ContactSet planes;  // of bodies on planes
     PairCache cache;
+    // where the outputs go in the merged set
+    std::size_t contactBase = 0, groupBase = 0, planeContactBase = 0, planeGroupBase = 0, listBase = 0, pairBase = 0;
     std::vector<std::pair<ParticleId, ParticleId>> found;
     std::size_t reused = 0;
     std::size_t cursor = 0;  // the last step's lists are walked in step with the (sorted) body pairs

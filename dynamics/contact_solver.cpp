@@ -371,14 +371,12 @@ void ContactSolver::remember() {
   // a key can repeat when two points share a particle pair (raw normals never, planes never): the first
   // in solving order is found
   std::swap(cacheKeys_, keys_);  // (keys_ is rewritten by the next step's preparation)
-  cache_.resize(rows_.size());
+  std::swap(cache_, nextCache_);
   std::size_t size = 16;
   while (size < 2 * rows_.size()) size *= 2;
   table_.assign(size, kEmpty);
   tableBits_ = std::countr_zero(size);
   for (std::size_t k = 0; k < rows_.size(); ++k) {
-    const Row& r = rows_[k];
-    cache_[k] = Cached{r.lambdaN, r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d};
     for (std::uint64_t i = hashSlot(cacheKeys_[k], tableBits_);; i = (i + 1) & (table_.size() - 1)) {
       if (table_[i] == kEmpty) {
         table_[i] = static_cast<std::uint32_t>(k);
@@ -406,7 +404,6 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   }
   rows_.resize(points.size());
   keys_.resize(points.size());
-  totalNormalImpulse_ = 0.0;
 
   // prepare rows: Jacobians, effective masses, restitution targets
   const auto prepare = [&](std::size_t part) {
@@ -458,6 +455,36 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     return started;
   };
 
+  // the velocities back in double, from the impulses: each point's impulse P, +P on B and -P on A, applied
+  // to the bodies' double velocities at the point's double arms. The iterations' own single-precision
+  // velocities agree with these to rounding, but only these conserve momentum to double precision (and a
+  // body without contacts keeps its velocity bit for bit)
+  impulses_.resize(rows_.size());
+  nextCache_.resize(rows_.size());
+  std::array<double, 3> normalSum{};
+  const auto finish = [&](std::size_t part) {
+    double sum = 0.0;
+    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) {
+      const Row& r = rows_[k];
+      const ContactPointInput& in = points[order_[k]];
+      nextCache_[k] = Cached{r.lambdaN, r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d};
+      const Vec3 impulse = wide(r.lambdaN * r.n.d + r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d);
+      impulses_[order_[k]] = impulse;
+      sum += static_cast<double>(r.lambdaN);
+      if (in.a != kFixed) {
+        SolverBody& a = bodies[in.a];
+        a.v -= a.invMass * impulse;
+        a.w -= a.invInertia * in.rA.cross(impulse);
+      }
+      if (in.b != kFixed) {
+        SolverBody& b = bodies[in.b];
+        b.v += b.invMass * impulse;
+        b.w += b.invInertia * in.rB.cross(impulse);
+      }
+    }
+    normalSum[part] = sum;
+  };
+
   // everything in the same order of phases, on one thread or two: prepare (after which the approach
   // speeds are taken), warm start, the iterations; in each phase the two halves, then the joining points
   const int workers = pool && pool->worthSharing(rows_.size(), 1024) ? 2 : 1;
@@ -496,6 +523,15 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     }
     for (std::size_t part = begin; part < end; ++part) unpack(part);
     if (worker == 0) unpack(2);
+    // impulses to the bodies: the halves at once (they share no body), then the joining points, so every
+    // body sums its impulses in row order however many threads there are
+    for (std::size_t part = begin; part < end; ++part) finish(part);
+    for (std::size_t i = nb * begin / 2; i < nb * end / 2; ++i) {
+      bodies[i].pv = wide(pv_[slot_[i]]);
+      bodies[i].pw = wide(pw_[slot_[i]]);
+    }
+    barrier_.wait();
+    if (worker == 0) finish(2);
   };
   if (workers == 2 && !rows_.empty()) {
     // exactly two ranges of one half each, whatever the pool's size
@@ -506,33 +542,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     iterate(0, 0, 2);
   }
   warmStarted_ = started[0] + started[1] + started[2];
-
-  // the velocities back in double, from the impulses: each point's impulse P, +P on B and -P on A, applied
-  // to the bodies' double velocities at the point's double arms. The iterations' own single-precision
-  // velocities agree with these to rounding, but only these conserve momentum to double precision (and a
-  // body without contacts keeps its velocity bit for bit)
-  impulses_.resize(rows_.size());
-  for (std::size_t k = 0; k < rows_.size(); ++k) {
-    const Row& r = rows_[k];
-    const ContactPointInput& in = points[order_[k]];
-    const Vec3 impulse = wide(r.lambdaN * r.n.d + r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d);
-    impulses_[order_[k]] = impulse;
-    totalNormalImpulse_ += static_cast<double>(r.lambdaN);
-    if (in.a != kFixed) {
-      SolverBody& a = bodies[in.a];
-      a.v -= a.invMass * impulse;
-      a.w -= a.invInertia * in.rA.cross(impulse);
-    }
-    if (in.b != kFixed) {
-      SolverBody& b = bodies[in.b];
-      b.v += b.invMass * impulse;
-      b.w += b.invInertia * in.rB.cross(impulse);
-    }
-  }
-  for (std::size_t i = 0; i < nb; ++i) {
-    bodies[i].pv = wide(pv_[slot_[i]]);
-    bodies[i].pw = wide(pw_[slot_[i]]);
-  }
+  totalNormalImpulse_ = normalSum[0] + normalSum[1] + normalSum[2];
   remember();
 }
 

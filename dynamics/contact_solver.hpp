@@ -170,6 +170,7 @@ class ContactSolver {
   std::vector<V4> v_, w_, pv_, pw_;
   std::vector<std::uint64_t> cacheKeys_;  // by row of the last step
   std::vector<Cached> cache_;             // by row of the last step
+  std::vector<Cached> nextCache_;         // by row of this step (becomes cache_)
   std::vector<std::uint32_t> table_;      // rows of the last step; a power of two long, at most half full
   int tableBits_ = 0;
   std::vector<Vec3> impulses_;

@@ -1,6 +1,7 @@
 #include "engine/world.hpp"
 
 #include <Eigen/SVD>
+#include <array>
 #include <chrono>
 #include <cmath>
 
@@ -486,89 +487,129 @@ std::uint32_t World::solverIndex(ParticleId p) {
 }
 
 void World::buildContactPoints() {
-  contactPoints_.clear();
-  pointParticles_.clear();
   const ContactSet& cs = contacts_;
   const PatchSet& ps = patches_;
-  auto combined = [&](ParticleId a, ParticleId b, PlaneId plane, double& friction, double& restitution) {
-    const auto [ma, mb] = contactMaterials(a, b, plane);
-    friction = std::sqrt(ma->friction * mb->friction);
-    restitution = std::max(ma->restitution, mb->restitution);
-  };
-  auto arm = [&](ParticleId p, const Vec3& point) -> Vec3 {
-    const BodyId b = particles_.body[p.index()];
-    return bodies_.info[b.index()].kind == BodyKind::Rigid ? Vec3(point - bodies_.state[b.index()].position) : Vec3::Zero();
-  };
-  auto addPoint = [&](const ParticleContact& c, const Vec3& normal, double depth) {
-    ContactPointInput in;
-    in.a = solverIndex(c.a);
-    in.b = c.b.valid() ? solverIndex(c.b) : ContactPointInput::kFixed;
-    if (in.a == ContactPointInput::kFixed && in.b == ContactPointInput::kFixed) return;
-    in.rA = arm(c.a, c.point);
-    in.rB = c.b.valid() ? arm(c.b, c.point) : Vec3::Zero();
-    in.normal = normal;
-    in.depth = depth;
-    const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
-    in.slop = settings_.slop * rsum;
-    combined(c.a, c.b, c.plane, in.friction, in.restitution);
-    in.key = (static_cast<std::uint64_t>(c.a.value) << 32) |
-             (c.b.valid() ? c.b.value : (0x80000000u | static_cast<std::uint32_t>(c.plane.value)));
-    contactPoints_.push_back(in);
-    pointParticles_.emplace_back(c.a, c.b);
-  };
-  for (const ContactPatch& patch : ps.patches) {
-    const std::uint32_t* idx = ps.contacts.data() + patch.first;
-    // point masses of deformable bodies take each pair's centre line where the patch has no valid plane
-    const bool deformable = bodies_.info[patch.a.index()].kind == BodyKind::Deformable ||
-                            (patch.b.valid() && bodies_.info[patch.b.index()].kind == BodyKind::Deformable);
-    if (settings_.rawNormals || (deformable && !patch.validated && !patch.plane.valid())) {
-      for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], cs.contacts[idx[k]].normal, cs.contacts[idx[k]].depth);
-      continue;
-    }
-    // breakable bodies keep every contact: the loads on their rods follow where the contacts are
-    auto reducible = [&](BodyId b) {
-      return bodies_.info[b.index()].kind != BodyKind::Deformable && !rodForces_[b.index()];
-    };
+  const std::size_t np = ps.patches.size();
+  const auto kind = [&](BodyId b) { return bodies_.info[b.index()].kind; };
+  // how a patch becomes points: every contact on its own centre line (raw normals; point masses of
+  // deformable bodies where the patch has no valid plane), every contact on the patch's plane (small
+  // patches; breakable bodies, whose rod loads follow where the contacts are), or a rigid patch reduced
+  // to a manifold of at most four points
+  enum : std::uint8_t { kRaw, kAll, kReduced, kNone };
+  pointMode_.resize(np);
+  pointFirst_.resize(np + 1);
+  pointFirst_[0] = 0;
+  for (std::size_t j = 0; j < np; ++j) {
+    const ContactPatch& patch = ps.patches[j];
+    const bool deformable = kind(patch.a) == BodyKind::Deformable || (patch.b.valid() && kind(patch.b) == BodyKind::Deformable);
+    const bool fixedA = kind(patch.a) == BodyKind::Static, fixedB = !patch.b.valid() || kind(patch.b) == BodyKind::Static;
+    const auto reducible = [&](BodyId b) { return kind(b) != BodyKind::Deformable && !rodForces_[b.index()]; };
     const bool rigidPair = reducible(patch.a) && (!patch.b.valid() || reducible(patch.b));
-    if (!rigidPair || patch.count <= 4) {
-      for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
-      continue;
+    std::uint8_t mode = kAll;
+    if (fixedA && fixedB) mode = kNone;
+    else if (settings_.rawNormals || (deformable && !patch.validated && !patch.plane.valid())) mode = kRaw;
+    else if (rigidPair && patch.count > 4) mode = kReduced;
+    pointMode_[j] = mode;
+    pointFirst_[j + 1] = pointFirst_[j] + (mode == kNone ? 0 : mode == kReduced ? 4 : patch.count);
+    // solver bodies in the order their first points name them (the points of a patch of two rigid
+    // bodies all name the same two)
+    if (mode == kNone) continue;
+    const std::uint32_t* idx = ps.contacts.data() + patch.first;
+    const std::uint32_t named = deformable ? patch.count : 1;
+    for (std::uint32_t k = 0; k < named; ++k) {
+      const ParticleContact& c = cs.contacts[idx[k]];
+      solverIndex(c.a);
+      if (c.b.valid()) solverIndex(c.b);
     }
-    // a rigid patch becomes a manifold of at most four points (Bullet's choice): the deepest, the one
-    // farthest from it, the one farthest from their line, and the one that adds most area on the far side
-    reduced_.clear();
-    auto pointOf = [&](std::uint32_t k) -> const Vec3& { return cs.contacts[idx[k]].point; };
-    std::uint32_t deepest = 0;
-    for (std::uint32_t k = 1; k < patch.count; ++k)
-      if (ps.depthAlongNormal[idx[k]] > ps.depthAlongNormal[idx[deepest]]) deepest = k;
-    reduced_.push_back(deepest);
-    auto best = [&](auto score) {
-      std::uint32_t arg = 0;
-      double top = -1.0;
-      for (std::uint32_t k = 0; k < patch.count; ++k) {
-        if (std::find(reduced_.begin(), reduced_.end(), k) != reduced_.end()) continue;
-        const double v = score(pointOf(k));
-        if (v > top) {
-          top = v;
-          arg = k;
-        }
-      }
-      return arg;
-    };
-    const Vec3 p0 = pointOf(deepest);
-    reduced_.push_back(best([&](const Vec3& x) { return (x - p0).squaredNorm(); }));
-    const Vec3 p1 = pointOf(reduced_[1]);
-    reduced_.push_back(best([&](const Vec3& x) { return (x - p0).cross(x - p1).squaredNorm(); }));
-    const Vec3 p2 = pointOf(reduced_[2]);
-    const Vec3 triNormal = (p1 - p0).cross(p2 - p0);
-    reduced_.push_back(best([&](const Vec3& x) {
-      // area added outside the triangle: the largest of the three triangles the point makes with an edge
-      const double a = (x - p0).cross(x - p1).dot(triNormal), b = (x - p1).cross(x - p2).dot(triNormal),
-                   c = (x - p2).cross(x - p0).dot(triNormal);
-      return std::max({-a, -b, -c});
-    }));
-    for (const std::uint32_t k : reduced_) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
   }
+  contactPoints_.resize(pointFirst_[np]);
+  pointParticles_.resize(pointFirst_[np]);
+  // the points themselves: patches shared among the workers, each point written at its patch's place
+  const auto fill = [&](int, std::size_t begin, std::size_t end) {
+    const auto slotOf = [&](ParticleId p) {
+      const BodyId b = particles_.body[p.index()];
+      switch (kind(b)) {
+        case BodyKind::Static: return ContactPointInput::kFixed;
+        case BodyKind::Rigid: return bodySolverIndex_[b.index()];
+        default: return particleSolverIndex_[p.index()];
+      }
+    };
+    const auto arm = [&](ParticleId p, const Vec3& point) -> Vec3 {
+      const BodyId b = particles_.body[p.index()];
+      return kind(b) == BodyKind::Rigid ? Vec3(point - bodies_.state[b.index()].position) : Vec3::Zero();
+    };
+    for (std::size_t j = begin; j < end; ++j) {
+      const ContactPatch& patch = ps.patches[j];
+      const std::uint32_t* idx = ps.contacts.data() + patch.first;
+      std::uint32_t out = pointFirst_[j];
+      const auto addPoint = [&](const ParticleContact& c, const Vec3& normal, double depth) {
+        ContactPointInput& in = contactPoints_[out];
+        pointParticles_[out++] = {c.a, c.b};
+        in.a = slotOf(c.a);
+        in.b = c.b.valid() ? slotOf(c.b) : ContactPointInput::kFixed;
+        in.rA = arm(c.a, c.point);
+        in.rB = c.b.valid() ? arm(c.b, c.point) : Vec3::Zero();
+        in.normal = normal;
+        in.depth = depth;
+        const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
+        in.slop = settings_.slop * rsum;
+        const auto [ma, mb] = contactMaterials(c.a, c.b, c.plane);
+        in.friction = std::sqrt(ma->friction * mb->friction);
+        in.restitution = std::max(ma->restitution, mb->restitution);
+        in.key = (static_cast<std::uint64_t>(c.a.value) << 32) |
+                 (c.b.valid() ? c.b.value : (0x80000000u | static_cast<std::uint32_t>(c.plane.value)));
+      };
+      switch (pointMode_[j]) {
+        case kNone: continue;
+        case kRaw:
+          for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], cs.contacts[idx[k]].normal, cs.contacts[idx[k]].depth);
+          continue;
+        case kAll:
+          for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
+          continue;
+        default: break;
+      }
+      // a manifold of four points (Bullet's choice): the deepest, the one farthest from it, the one
+      // farthest from their line, and the one that adds most area on the far side
+      std::array<std::uint32_t, 4> reduced{};
+      std::size_t chosen = 0;
+      auto pointOf = [&](std::uint32_t k) -> const Vec3& { return cs.contacts[idx[k]].point; };
+      std::uint32_t deepest = 0;
+      for (std::uint32_t k = 1; k < patch.count; ++k)
+        if (ps.depthAlongNormal[idx[k]] > ps.depthAlongNormal[idx[deepest]]) deepest = k;
+      reduced[chosen++] = deepest;
+      auto best = [&](auto score) {
+        std::uint32_t arg = 0;
+        double top = -1.0;
+        for (std::uint32_t k = 0; k < patch.count; ++k) {
+          if (std::find(reduced.begin(), reduced.begin() + static_cast<std::ptrdiff_t>(chosen), k) !=
+              reduced.begin() + static_cast<std::ptrdiff_t>(chosen))
+            continue;
+          const double v = score(pointOf(k));
+          if (v > top) {
+            top = v;
+            arg = k;
+          }
+        }
+        return arg;
+      };
+      const Vec3 p0 = pointOf(deepest);
+      reduced[chosen++] = best([&](const Vec3& x) { return (x - p0).squaredNorm(); });
+      const Vec3 p1 = pointOf(reduced[1]);
+      reduced[chosen++] = best([&](const Vec3& x) { return (x - p0).cross(x - p1).squaredNorm(); });
+      const Vec3 p2 = pointOf(reduced[2]);
+      const Vec3 triNormal = (p1 - p0).cross(p2 - p0);
+      reduced[chosen++] = best([&](const Vec3& x) {
+        // area added outside the triangle: the largest of the three triangles the point makes with an edge
+        const double a = (x - p0).cross(x - p1).dot(triNormal), b = (x - p1).cross(x - p2).dot(triNormal),
+                     c = (x - p2).cross(x - p0).dot(triNormal);
+        return std::max({-a, -b, -c});
+      });
+      for (const std::uint32_t k : reduced) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
+    }
+  };
+  if (pool_ && pool_->worthSharing(np, 512)) pool_->run(np, fill);
+  else fill(0, 0, np);
 }
 
 std::pair<const Material*, const Material*> World::contactMaterials(ParticleId a, ParticleId b, PlaneId plane) const {

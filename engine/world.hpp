@@ -169,7 +169,8 @@ class World {
   std::vector<ParticleId> solverParticleOwner_;     // per solver body: its particle (invalid: a rigid body)
   std::vector<Vec3> particleShift_;                 // [P] pseudo displacement of deformable particles
   std::vector<DeformableContact> deformableContacts_;
-  std::vector<std::uint32_t> reduced_;              // manifold reduction scratch
+  std::vector<std::uint8_t> pointMode_;             // per patch: how it becomes contact points
+  std::vector<std::uint32_t> pointFirst_;           // per patch: its first contact point (and the end)
   std::vector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles
 
   // breakage

@@ -4,25 +4,6 @@
 
 namespace volpar {
 
-void SpinBarrier::wait() {
-  if (count_ <= 1) return;
-  const unsigned generation = generation_.load(std::memory_order_acquire);
-  if (waiting_.fetch_add(1, std::memory_order_acq_rel) + 1 == count_) {
-    waiting_.store(0, std::memory_order_relaxed);
-    generation_.fetch_add(1, std::memory_order_acq_rel);
-    return;
-  }
-  for (int spins = 0; generation_.load(std::memory_order_acquire) == generation; ++spins) {
-    if (spins < 2000) {
-#if defined(__x86_64__) || defined(__i386__)
-      __builtin_ia32_pause();
-#endif
-    } else {
-      std::this_thread::yield();
-    }
-  }
-}
-
 namespace {
 
 /// A short wait inside a spin loop (lets the other hardware thread of a core run).
@@ -33,6 +14,20 @@ inline void relax() {
 }
 
 }  // namespace
+
+void SpinBarrier::wait() {
+  if (count_ <= 1) return;
+  const unsigned generation = generation_.load(std::memory_order_acquire);
+  if (waiting_.fetch_add(1, std::memory_order_acq_rel) + 1 == count_) {
+    waiting_.store(0, std::memory_order_relaxed);
+    generation_.fetch_add(1, std::memory_order_acq_rel);
+    return;
+  }
+  for (int spins = 0; generation_.load(std::memory_order_acquire) == generation; ++spins) {
+    if (spins < ThreadPool::kSpins) relax();
+    else std::this_thread::yield();
+  }
+}
 
 ThreadPool::ThreadPool(int workers) : workers_(std::max(1, workers)) {
   for (int w = 1; w < workers_; ++w) threads_.emplace_back([this, w] { loop(w); });

@@ -51,6 +51,10 @@ class ThreadPool {
   ThreadPool& operator=(const ThreadPool&) = delete;
 
   [[nodiscard]] int workers() const { return workers_; }
+  /// Pause instructions a waiting thread spins through before it sleeps (workers) or yields (callers,
+  /// barriers): about a millisecond, longer than the gaps between the runs of one step, short beside a
+  /// frame.
+  static constexpr int kSpins = 20000;
   /// Whether n items are worth handing out: at least `perWorker` for every worker (waking the workers
   /// costs more than a few small items). Sharing or not never changes a result.
   [[nodiscard]] bool worthSharing(std::size_t n, std::size_t perWorker) const {
@@ -71,9 +75,6 @@ class ThreadPool {
   int workers_ = 1;
   bool shareAll_ = false;
   std::vector<std::thread> threads_;
-  /// Pause instructions a waiting thread spins through before it sleeps (workers) or yields (the caller):
-  /// about a millisecond, longer than the gaps between the runs of one step, short beside a frame.
-  static constexpr int kSpins = 20000;
   std::mutex mutex_;
   std::condition_variable start_;
   std::atomic<std::size_t> generation_{0};  // one more for every run (and for stopping)
