@@ -110,7 +110,7 @@ void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const
   const ParticleStore& p = *in.particles;
   const Quat& qa = in.bodies->state[g.a.index()].orientation;
   const bool plane = g.plane.valid();
-  const std::size_t patchBegin = w.patches.size();
+  const std::size_t patchBegin = w.o->patches.size();
   std::uint32_t k = c.pairFirst;  // position in cache order (parallel to pairs)
   for (std::uint32_t j = 0; j < c.patchCount; ++j) {
     const CachedPatch& cp = cache_.patches[c.patchFirst + j];
@@ -124,14 +124,14 @@ void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const
     patch.source = cp.source;
     patch.validated = cp.validated;
     patch.lookAhead = cp.lookAhead;
-    patch.first = static_cast<std::uint32_t>(w.contacts.size());
+    patch.first = static_cast<std::uint32_t>(w.o->contacts.size());
     patch.count = cp.count;
     // depths along the normal and the deepest point, from the current positions
     std::uint32_t deepest = g.first + cache_.order[k];
     patch.depth = 0.0;
     for (std::uint32_t i = 0; i < cp.count; ++i, ++k) {
       const std::uint32_t ci = g.first + cache_.order[k];
-      w.contacts.push_back(ci);
+      w.o->contacts.push_back(ci);
       const ParticleContact& ct = set.contacts[ci];
       if (ct.depth > set.contacts[deepest].depth) deepest = ci;
       const double d = plane ? ct.depth
@@ -141,16 +141,16 @@ void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const
       patch.depth = std::max(patch.depth, d);
     }
     patch.point = set.contacts[deepest].point;
-    ++w.stats.patches;
-    ++w.stats.reused;
-    ++w.stats.byCase[static_cast<std::size_t>(patch.planeCase)];
-    if (!patch.validated) ++w.stats.unvalidated;
-    w.patches.push_back(patch);
+    ++w.o->stats.patches;
+    ++w.o->stats.reused;
+    ++w.o->stats.byCase[static_cast<std::size_t>(patch.planeCase)];
+    if (!patch.validated) ++w.o->stats.unvalidated;
+    w.o->patches.push_back(patch);
   }
   remember(in, set, g, patchBegin, w);
   // keep the pose of the computation, not this step's: the tolerance bounds the total drift
-  w.cache.groups.back().relRotation = c.relRotation;
-  w.cache.groups.back().relPosition = c.relPosition;
+  w.o->cache.groups.back().relRotation = c.relRotation;
+  w.o->cache.groups.back().relPosition = c.relPosition;
 }
 
 void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
@@ -158,17 +158,17 @@ void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, co
   CachedGroup c;
   c.key = keyOf(g);
   relativePose(in, g, c.relRotation, c.relPosition);
-  c.pairFirst = static_cast<std::uint32_t>(w.cache.pairs.size());
+  c.pairFirst = static_cast<std::uint32_t>(w.o->cache.pairs.size());
   c.pairCount = g.count;
-  c.patchFirst = static_cast<std::uint32_t>(w.cache.patches.size());
-  c.patchCount = static_cast<std::uint32_t>(w.patches.size() - patchBegin);
+  c.patchFirst = static_cast<std::uint32_t>(w.o->cache.patches.size());
+  c.patchCount = static_cast<std::uint32_t>(w.o->patches.size() - patchBegin);
   for (std::uint32_t i = 0; i < g.count; ++i) {
     const ParticleContact& ct = set.contacts[g.first + i];
-    w.cache.pairs.emplace_back(ct.a, ct.b);
+    w.o->cache.pairs.emplace_back(ct.a, ct.b);
   }
   const Quat toA = in.bodies->state[g.a.index()].orientation.conjugate();
-  for (std::size_t j = patchBegin; j < w.patches.size(); ++j) {
-    const ContactPatch& patch = w.patches[j];
+  for (std::size_t j = patchBegin; j < w.o->patches.size(); ++j) {
+    const ContactPatch& patch = w.o->patches[j];
     CachedPatch cp;
     cp.normal = g.plane.valid() ? patch.normal : Vec3(toA * patch.normal);
     cp.margin = patch.margin;
@@ -177,96 +177,112 @@ void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, co
     cp.source = patch.source;
     cp.validated = patch.validated;
     cp.lookAhead = patch.lookAhead;
-    w.cache.patches.push_back(cp);
-    for (std::uint32_t i = patch.first; i < patch.first + patch.count; ++i) w.cache.order.push_back(w.contacts[i] - g.first);
+    w.o->cache.patches.push_back(cp);
+    for (std::uint32_t i = patch.first; i < patch.first + patch.count; ++i) w.o->cache.order.push_back(w.o->contacts[i] - g.first);
   }
-  w.cache.groups.push_back(c);
+  w.o->cache.groups.push_back(c);
 }
 
 void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out, ThreadPool* pool) {
-  out.patches.clear();
-  out.contacts.clear();
   out.stats = NarrowPhaseStats{};
   out.depthAlongNormal.assign(contacts.contacts.size(), 0.0);
   out.patchOfContact.assign(contacts.contacts.size(), 0);
   const std::size_t groups = contacts.groups.size();
-  const std::size_t workers = pool ? static_cast<std::size_t>(pool->workers()) : 1;
+  const bool shared = pool && pool->worthSharing(groups, 512);
+  const std::size_t workers = shared ? static_cast<std::size_t>(pool->workers()) : 1;
+  const std::size_t chunks = shared ? kChunksPerWorker * workers : 1;
   if (workers_.size() < workers) workers_.resize(workers);
-  for (std::size_t k = 0; k < workers; ++k) {
-    Worker& w = workers_[k];
-    w.patches.clear();
-    w.contacts.clear();
-    w.stats = NarrowPhaseStats{};
-    w.cache.clear();
-    if (w.mark.size() < in.particles->size()) w.mark.resize(in.particles->size(), 0);
+  for (std::size_t k = 0; k < workers; ++k)
+    if (workers_[k].mark.size() < in.particles->size()) workers_[k].mark.resize(in.particles->size(), 0);
+  if (chunks_.size() < chunks) chunks_.resize(chunks);
+  for (std::size_t k = 0; k < chunks; ++k) {
+    Output& o = chunks_[k];
+    o.patches.clear();
+    o.contacts.clear();
+    o.stats = NarrowPhaseStats{};
+    o.cache.clear();
   }
-  // each group's patches of the last run, if it may take them over, and the group's cost (taking patches
-  // over costs a small part of computing them), which balances the workers' shares below
-  match_.resize(groups);
-  weights_.resize(groups);
+  // the groups in chunks of contiguous ranges that the workers take as they go (a group whose patches
+  // are taken over costs a small part of one whose patches are computed); outputs merged in chunk order
   const auto byKey = [](const CachedGroup& c, const GroupKey& k) { return c.key < k; };
-  const auto match = [&](int, std::size_t begin, std::size_t end) {
-    // (groups mostly come in key order, like the cache: a cursor walks forward, a binary search when not)
+  const auto work = [&](int worker, std::size_t k) {
+    Worker& w = workers_[static_cast<std::size_t>(worker)];
+    w.o = &chunks_[k];
+    const std::size_t begin = groups * k / chunks, end = groups * (k + 1) / chunks;
+    // each group's patches of the last run, if it may take them over (groups mostly come in key order,
+    // like the cache: a cursor walks forward, a binary search when not)
     auto cursor = cache_.groups.begin();
     if (begin < end) cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), keyOf(contacts.groups[begin]), byKey);
     for (std::size_t gi = begin; gi < end; ++gi) {
       const ContactGroup& g = contacts.groups[gi];
-      match_[gi] = -1;
-      weights_[gi] = g.count * kFreshWeight;
-      if (!settings_.reuse || !cacheable(in, g)) continue;
-      const GroupKey key = keyOf(g);
-      if (cursor != cache_.groups.begin() && !(std::prev(cursor)->key < key))
-        cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), key, byKey);
-      while (cursor != cache_.groups.end() && cursor->key < key) ++cursor;
-      if (cursor != cache_.groups.end() && cursor->key == key && reusable(in, contacts, g, *cursor)) {
-        match_[gi] = static_cast<std::int32_t>(cursor - cache_.groups.begin());
-        weights_[gi] = g.count;
+      const bool cacheableGroup = settings_.reuse && cacheable(in, g);
+      if (cacheableGroup) {
+        const GroupKey key = keyOf(g);
+        if (cursor != cache_.groups.begin() && !(std::prev(cursor)->key < key))
+          cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), key, byKey);
+        while (cursor != cache_.groups.end() && cursor->key < key) ++cursor;
+        if (cursor != cache_.groups.end() && cursor->key == key && reusable(in, contacts, g, *cursor)) {
+          reuse(in, contacts, g, *cursor, w, out);
+          continue;
+        }
       }
-    }
-  };
-  if (pool && pool->worthSharing(groups, 512)) pool->run(groups, match);
-  else match(0, 0, groups);
-  const auto work = [&](int worker, std::size_t begin, std::size_t end) {
-    Worker& w = workers_[static_cast<std::size_t>(worker)];
-    for (std::size_t gi = begin; gi < end; ++gi) {
-      const ContactGroup& g = contacts.groups[gi];
-      if (match_[gi] >= 0) {
-        reuse(in, contacts, g, cache_.groups[static_cast<std::size_t>(match_[gi])], w, out);
-        continue;
-      }
-      const std::size_t patchBegin = w.patches.size();
+      const std::size_t patchBegin = w.o->patches.size();
       makePatches(in, contacts, g, w, out);
-      if (settings_.reuse && cacheable(in, g)) remember(in, contacts, g, patchBegin, w);
+      if (cacheableGroup) remember(in, contacts, g, patchBegin, w);
     }
   };
-  if (pool && pool->worthSharing(groups, 512)) pool->run(groups, work, &weights_);
-  else work(0, 0, groups);
-  // merge in worker order, which is group order
-  cache_.clear();
-  for (std::size_t k = 0; k < workers; ++k) {
-    Worker& w = workers_[k];
-    const auto patchBase = static_cast<std::uint32_t>(out.patches.size());
-    const auto contactBase = static_cast<std::uint32_t>(out.contacts.size());
-    for (std::size_t j = 0; j < w.patches.size(); ++j) {
-      ContactPatch patch = w.patches[j];
-      patch.first += contactBase;
-      for (std::uint32_t i = patch.first - contactBase; i < patch.first - contactBase + patch.count; ++i)
-        out.patchOfContact[w.contacts[i]] = patchBase + static_cast<std::uint32_t>(j);
-      out.patches.push_back(patch);
-    }
-    out.contacts.insert(out.contacts.end(), w.contacts.begin(), w.contacts.end());
-    out.stats += w.stats;
-    const auto pairBase = static_cast<std::uint32_t>(cache_.pairs.size());
-    const auto cachedPatchBase = static_cast<std::uint32_t>(cache_.patches.size());
-    for (CachedGroup c : w.cache.groups) {
-      c.pairFirst += pairBase;
-      c.patchFirst += cachedPatchBase;
-      cache_.groups.push_back(c);
-    }
-    cache_.pairs.insert(cache_.pairs.end(), w.cache.pairs.begin(), w.cache.pairs.end());
-    cache_.order.insert(cache_.order.end(), w.cache.order.begin(), w.cache.order.end());
-    cache_.patches.insert(cache_.patches.end(), w.cache.patches.begin(), w.cache.patches.end());
+  if (shared) pool->runItems(chunks, work);
+  else work(0, 0);
+  // the chunks' outputs at their places, copied by the workers
+  std::size_t patches = 0, indices = 0, cachedGroups = 0, cachedPairs = 0, cachedOrder = 0, cachedPatches = 0;
+  for (std::size_t k = 0; k < chunks; ++k) {
+    Output& o = chunks_[k];
+    o.patchBase = patches;
+    o.contactBase = indices;
+    o.groupBase = cachedGroups;
+    o.pairBase = cachedPairs;
+    o.orderBase = cachedOrder;
+    o.cachedPatchBase = cachedPatches;
+    patches += o.patches.size();
+    indices += o.contacts.size();
+    cachedGroups += o.cache.groups.size();
+    cachedPairs += o.cache.pairs.size();
+    cachedOrder += o.cache.order.size();
+    cachedPatches += o.cache.patches.size();
+    out.stats += o.stats;
   }
+  out.patches.resize(patches);
+  out.contacts.resize(indices);
+  cache_.groups.resize(cachedGroups);
+  cache_.pairs.resize(cachedPairs);
+  cache_.order.resize(cachedOrder);
+  cache_.patches.resize(cachedPatches);
+  const auto copy = [&](int, std::size_t begin, std::size_t end) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const Output& o = chunks_[k];
+      const auto contactBase = static_cast<std::uint32_t>(o.contactBase);
+      for (std::size_t j = 0; j < o.patches.size(); ++j) {
+        ContactPatch patch = o.patches[j];
+        for (std::uint32_t i = patch.first; i < patch.first + patch.count; ++i)
+          out.patchOfContact[o.contacts[i]] = static_cast<std::uint32_t>(o.patchBase + j);
+        patch.first += contactBase;
+        out.patches[o.patchBase + j] = patch;
+      }
+      std::copy(o.contacts.begin(), o.contacts.end(), out.contacts.begin() + static_cast<std::ptrdiff_t>(o.contactBase));
+      for (std::size_t j = 0; j < o.cache.groups.size(); ++j) {
+        CachedGroup c = o.cache.groups[j];
+        c.pairFirst += static_cast<std::uint32_t>(o.pairBase);
+        c.patchFirst += static_cast<std::uint32_t>(o.cachedPatchBase);
+        cache_.groups[o.groupBase + j] = c;
+      }
+      std::copy(o.cache.pairs.begin(), o.cache.pairs.end(), cache_.pairs.begin() + static_cast<std::ptrdiff_t>(o.pairBase));
+      std::copy(o.cache.order.begin(), o.cache.order.end(), cache_.order.begin() + static_cast<std::ptrdiff_t>(o.orderBase));
+      std::copy(o.cache.patches.begin(), o.cache.patches.end(),
+                cache_.patches.begin() + static_cast<std::ptrdiff_t>(o.cachedPatchBase));
+    }
+  };
+  if (shared) pool->run(chunks, copy);
+  else copy(0, 0, chunks);
   // lookups need the keys in order (they are, as groups come sorted, but a caller may order them otherwise)
   if (!std::is_sorted(cache_.groups.begin(), cache_.groups.end(),
                       [](const CachedGroup& x, const CachedGroup& y) { return x.key < y.key; }))
@@ -314,12 +330,12 @@ void NarrowPhase::makePatches(const NarrowPhaseInput& in, const ContactSet& set,
     patch.a = g.a;
     patch.b = g.b;
     patch.plane = g.plane;
-    patch.first = static_cast<std::uint32_t>(w.contacts.size());
+    patch.first = static_cast<std::uint32_t>(w.o->contacts.size());
     const std::uint32_t root = parent[order[k]];
-    for (; k < m && parent[order[k]] == root; ++k) w.contacts.push_back(g.first + order[k]);
-    patch.count = static_cast<std::uint32_t>(w.contacts.size()) - patch.first;
+    for (; k < m && parent[order[k]] == root; ++k) w.o->contacts.push_back(g.first + order[k]);
+    patch.count = static_cast<std::uint32_t>(w.o->contacts.size()) - patch.first;
     solvePatch(in, set, patch, w, out);
-    w.patches.push_back(patch);
+    w.o->patches.push_back(patch);
   }
 }
 
@@ -545,7 +561,7 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
                              PatchSet& out) const {
   const ParticleStore& p = *in.particles;
   const bool isPlane = patch.plane.valid();
-  const std::uint32_t* idx = w.contacts.data() + patch.first;
+  const std::uint32_t* idx = w.o->contacts.data() + patch.first;
 
   // the sides: unique particles, ascending
   w.sideA.particles.clear();
@@ -587,7 +603,7 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
     patch.planeCase = PlaneCase::ParticlePlane;
   } else {
     if (patch.count == 1 && settings_.lookAheadSteps > 0) {
-      ++w.stats.lookAheads;
+      ++w.o->stats.lookAheads;
       patch.lookAhead = lookAhead(in, deep.a, deep.b, w.pointsA, w.pointsB, contactDifference, w);
       if (!patch.lookAhead) {  // no second contact: back to the real single contact
         w.sideA.particles.assign(1, deep.a);
@@ -662,15 +678,15 @@ void NarrowPhase::solvePatch(const NarrowPhaseInput& in, const ContactSet& set, 
       best = cand;
     }
   }
-  w.stats.candidates += w.candidates.size();
+  w.o->stats.candidates += w.candidates.size();
   patch.normal = best.normal;
   patch.source = best.source;
   patch.margin = bestMargin;
   patch.validated = bestValid;
   patch.point = deep.point;
-  if (!patch.validated) ++w.stats.unvalidated;
-  ++w.stats.patches;
-  ++w.stats.byCase[static_cast<std::size_t>(patch.planeCase)];
+  if (!patch.validated) ++w.o->stats.unvalidated;
+  ++w.o->stats.patches;
+  ++w.o->stats.byCase[static_cast<std::size_t>(patch.planeCase)];
 
   // depth of every contact along the patch normal
   patch.depth = 0.0;

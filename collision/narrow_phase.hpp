@@ -149,12 +149,17 @@ class NarrowPhase {
   };
 
   /// Scratch and output of one worker thread.
-  struct Worker {
-    // output for its range of groups, merged in order afterwards
+  /// The output of a chunk of the groups, merged in order afterwards.
+  struct Output {
     std::vector<ContactPatch> patches;
     std::vector<std::uint32_t> contacts;
     NarrowPhaseStats stats;
     Cache cache;
+    // where it goes in the merged output
+    std::size_t patchBase = 0, contactBase = 0, groupBase = 0, pairBase = 0, orderBase = 0, cachedPatchBase = 0;
+  };
+  struct Worker {
+    Output* o = nullptr;  // the chunk being worked on
     // scratch, reused across patches and steps
     std::vector<std::uint32_t> parent, order;
     std::vector<Vec3> pointsA, pointsB;
@@ -204,10 +209,9 @@ class NarrowPhase {
   PlaneSettings settings_;
   std::vector<Worker> workers_;
   Cache cache_;                        // what the last run computed or reused, for the next
-  std::vector<std::int32_t> match_;    // per group of this run: its entry in cache_, or -1
-  std::vector<std::size_t> weights_;   // per group: its cost, to balance the workers
-  /// Weight of a contact in a group whose patches are computed, against one whose patches are taken over.
-  static constexpr std::size_t kFreshWeight = 16;
+  std::vector<Output> chunks_;
+  /// Chunks per worker thread when the groups are shared: enough for the uneven ones to balance out.
+  static constexpr std::size_t kChunksPerWorker = 8;
 };
 
 /// World-frame outward normal of a surface particle from the cache (zero for interior particles).

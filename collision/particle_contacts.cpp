@@ -193,7 +193,7 @@ void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, 
 }
 
 void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, BodyId a, BodyId b,
-                             std::span<const Aabb> boxes, Worker& w) const {
+                             std::span<const Aabb> boxes, Chunk& w) const {
   ContactSet& out = w.out;
   const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
   const bool rigid = !grids_[a.index()].worldFrame && !grids_[b.index()].worldFrame;
@@ -294,45 +294,42 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
   out.clear();
   if (adjacencyDirty_) rebuildAdjacency(particles, connectors);
   for (const BodyId id : deformables_) buildGrid(grids_[id.index()], bodies.info[id.index()].particles, particles.position, particles);
-  // body pairs, then bodies on planes, each shared among the workers in contiguous ranges and merged in
-  // order: all body pairs' contacts first, then all planes'
+  // body pairs, then bodies on planes, in chunks of contiguous ranges that the workers take as they go;
+  // the chunks' outputs are merged in order, all body pairs' contacts first, then all planes'
   const bool shared = pool && pool->worthSharing(pairs.size(), 512);
-  const std::size_t workers = shared ? static_cast<std::size_t>(pool->workers()) : 1;
-  if (workers_.size() < workers) workers_.resize(workers);
-  for (std::size_t k = 0; k < workers; ++k) {
-    workers_[k].out.clear();
-    workers_[k].planes.clear();
-    workers_[k].cache.clear();
-    workers_[k].reused = 0;
+  const std::size_t chunks = shared ? kChunksPerWorker * static_cast<std::size_t>(pool->workers()) : 1;
+  if (chunks_.size() < chunks) chunks_.resize(chunks);
+  for (std::size_t k = 0; k < chunks; ++k) {
+    chunks_[k].out.clear();
+    chunks_[k].planes.clear();
+    chunks_[k].cache.clear();
+    chunks_[k].reused = 0;
   }
-  const auto work = [&](int worker, std::size_t begin, std::size_t end) {
-    Worker& w = workers_[static_cast<std::size_t>(worker)];
+  const auto work = [&](int, std::size_t k) {
+    Chunk& w = chunks_[k];
+    const std::size_t begin = pairs.size() * k / chunks, end = pairs.size() * (k + 1) / chunks;
     // where this range's pairs start among the last step's lists
     w.cursor = 0;
     if (begin < end) {
       const auto first = std::make_pair(pairs[begin].a.value, pairs[begin].b.value);
       w.cursor = static_cast<std::size_t>(
           std::lower_bound(cache_.lists.begin(), cache_.lists.end(), first,
-                           [](const PairList& l, const std::pair<std::uint32_t, std::uint32_t>& k) {
-                             return std::make_pair(l.a, l.b) < k;
+                           [](const PairList& l, const std::pair<std::uint32_t, std::uint32_t>& key) {
+                             return std::make_pair(l.a, l.b) < key;
                            }) -
           cache_.lists.begin());
     }
     for (std::size_t i = begin; i < end; ++i) bodyPair(particles, bodies, pairs[i].a, pairs[i].b, boxes, w);
-    const auto k = static_cast<std::size_t>(worker);
-    for (std::size_t i = planePairs.size() * k / workers; i < planePairs.size() * (k + 1) / workers; ++i)
+    for (std::size_t i = planePairs.size() * k / chunks; i < planePairs.size() * (k + 1) / chunks; ++i)
       planeContacts(particles, bodies, planePairs[i].body, planePairs[i].plane, planes[planePairs[i].plane.index()], w.planes);
   };
-  if (shared) pool->run(workers, [&](int worker, std::size_t, std::size_t) {
-    const auto k = static_cast<std::size_t>(worker);
-    work(worker, pairs.size() * k / workers, pairs.size() * (k + 1) / workers);
-  });
-  else work(0, 0, pairs.size());
-  // the workers' outputs at their places, copied by the workers
+  if (shared) pool->runItems(chunks, work);
+  else work(0, 0);
+  // the chunks' outputs at their places, copied by the workers
   reusedPairs_ = 0;
   std::size_t contacts = 0, groups = 0, lists = 0, listed = 0;
-  for (std::size_t k = 0; k < workers; ++k) {
-    Worker& w = workers_[k];
+  for (std::size_t k = 0; k < chunks; ++k) {
+    Chunk& w = chunks_[k];
     w.contactBase = contacts;
     w.groupBase = groups;
     w.listBase = lists;
@@ -343,8 +340,8 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
     listed += w.cache.pairs.size();
     reusedPairs_ += w.reused;
   }
-  for (std::size_t k = 0; k < workers; ++k) {
-    Worker& w = workers_[k];
+  for (std::size_t k = 0; k < chunks; ++k) {
+    Chunk& w = chunks_[k];
     w.planeContactBase = contacts;
     w.planeGroupBase = groups;
     contacts += w.planes.contacts.size();
@@ -364,7 +361,7 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
   };
   const auto copy = [&](int, std::size_t begin, std::size_t end) {
     for (std::size_t k = begin; k < end; ++k) {
-      const Worker& w = workers_[k];
+      const Chunk& w = chunks_[k];
       place(w.out, w.contactBase, w.groupBase);
       place(w.planes, w.planeContactBase, w.planeGroupBase);
       for (std::size_t i = 0; i < w.cache.lists.size(); ++i) {
@@ -375,8 +372,8 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
       std::copy(w.cache.pairs.begin(), w.cache.pairs.end(), cache_.pairs.begin() + static_cast<std::ptrdiff_t>(w.pairBase));
     }
   };
-  if (shared) pool->run(workers, copy);
-  else copy(0, 0, workers);
+  if (shared) pool->run(chunks, copy);
+  else copy(0, 0, chunks);
   // lookups need the lists in key order (body pairs come sorted; if a caller's do not, nothing is reused)
   if (!std::is_sorted(cache_.lists.begin(), cache_.lists.end(), [](const PairList& x, const PairList& y) {
         return std::make_pair(x.a, x.b) < std::make_pair(y.a, y.b);

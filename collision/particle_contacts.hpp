@@ -133,8 +133,8 @@ class ContactFinder {
       pairs.clear();
     }
   };
-  /// Output and cache of one worker thread, merged in order afterwards.
-  struct Worker {
+  /// Output and cache of one chunk of the body pairs (and of the planes' pairs), merged in order afterwards.
+  struct Chunk {
     ContactSet out;     // of body pairs
     ContactSet planes;  // of bodies on planes
     PairCache cache;
@@ -150,7 +150,7 @@ class ContactFinder {
   void searchPair(const ParticleStore& particles, const BodyStore& bodies, BodyId a, BodyId b, std::span<const Aabb> boxes,
                   double skin, ContactSet& out, std::vector<std::pair<ParticleId, ParticleId>>* listed) const;
   void bodyPair(const ParticleStore& particles, const BodyStore& bodies, BodyId a, BodyId b,
-                std::span<const Aabb> boxes, Worker& w) const;
+                std::span<const Aabb> boxes, Chunk& w) const;
   void selfContacts(const ParticleStore& particles, BodyId id, ContactSet& out) const;
   void planeContacts(const ParticleStore& particles, const BodyStore& bodies, BodyId id, PlaneId plane,
                      const Plane& pl, ContactSet& out) const;
@@ -159,7 +159,9 @@ class ContactFinder {
   std::vector<double> extent_;   // by body index: farthest particle centre from the body's origin [m]
   bool reuse_ = true;
   PairCache cache_;              // candidate lists of the last find(), for the next
-  std::vector<Worker> workers_;
+  std::vector<Chunk> chunks_;
+  /// Chunks per worker thread when the pairs are shared: enough for the uneven ones to balance out.
+  static constexpr std::size_t kChunksPerWorker = 8;
   std::size_t reusedPairs_ = 0;
   std::vector<BodyId> deformables_;
   std::vector<std::uint32_t> adjacencyStart_;  // CSR over particles [P + 1]

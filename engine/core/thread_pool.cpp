@@ -87,6 +87,19 @@ void ThreadPool::run(std::size_t n, const std::function<void(int, std::size_t, s
   job_ = nullptr;
 }
 
+void ThreadPool::runItems(std::size_t n, const std::function<void(int, std::size_t)>& f) {
+  if (n == 0) return;
+  if (workers_ == 1 || n == 1) {
+    for (std::size_t i = 0; i < n; ++i) f(0, i);
+    return;
+  }
+  std::atomic<std::size_t> next{0};
+  run(static_cast<std::size_t>(workers_), [&](int worker, std::size_t, std::size_t) {
+    for (std::size_t i = next.fetch_add(1, std::memory_order_relaxed); i < n; i = next.fetch_add(1, std::memory_order_relaxed))
+      f(worker, i);
+  });
+}
+
 void ThreadPool::loop(int worker) {
   std::size_t seen = 0;
   for (;;) {

@@ -66,6 +66,10 @@ class ThreadPool {
   /// all are done. `weights`, if given (size n), balances the ranges by cumulative weight instead of count.
   void run(std::size_t n, const std::function<void(int, std::size_t, std::size_t)>& f,
            const std::vector<std::size_t>* weights = nullptr);
+  /// Calls f(worker, item) once for every item of [0, n), the workers taking the next item as they
+  /// finish one (uneven items balance themselves). Which worker runs an item depends on timing: f must
+  /// write only to the item's own output (merged in item order afterwards) and to the worker's scratch.
+  void runItems(std::size_t n, const std::function<void(int, std::size_t)>& f);
   /// The range boundaries run() uses: bounds[w] .. bounds[w + 1] for worker w (workers + 1 entries).
   void split(std::size_t n, const std::vector<std::size_t>* weights, std::vector<std::size_t>& bounds) const;
 
