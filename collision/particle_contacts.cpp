@@ -291,7 +291,8 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
                          std::span<const BodyPair> pairs, std::span<const BodyPlanePair> planePairs,
                          std::span<const Plane> planes, std::span<const Aabb> boxes, ContactSet& out,
                          ThreadPool* pool) {
-  out.clear();
+  // (out keeps its size until the merge below resizes it: only entries beyond the last step's are
+  // initialised before they are overwritten)
   if (adjacencyDirty_) rebuildAdjacency(particles, connectors);
   for (const BodyId id : deformables_) buildGrid(grids_[id.index()], bodies.info[id.index()].particles, particles.position, particles);
   // body pairs, then bodies on planes, in chunks of contiguous ranges that the workers take as they go;

@@ -542,6 +542,12 @@ void World::buildContactPoints() {
       const ContactPatch& patch = ps.patches[j];
       const std::uint32_t* idx = ps.contacts.data() + patch.first;
       std::uint32_t out = pointFirst_[j];
+      if (pointMode_[j] == kNone) continue;
+      // (the contacts of a patch join the same two bodies, or a body and a plane)
+      const ParticleContact& first = cs.contacts[idx[0]];
+      const auto [ma, mb] = contactMaterials(first.a, first.b, first.plane);
+      const double friction = std::sqrt(ma->friction * mb->friction);
+      const double restitution = std::max(ma->restitution, mb->restitution);
       const auto addPoint = [&](const ParticleContact& c, const Vec3& normal, double depth) {
         ContactPointInput& in = contactPoints_[out];
         pointParticles_[out++] = {c.a, c.b};
@@ -553,14 +559,12 @@ void World::buildContactPoints() {
         in.depth = depth;
         const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
         in.slop = settings_.slop * rsum;
-        const auto [ma, mb] = contactMaterials(c.a, c.b, c.plane);
-        in.friction = std::sqrt(ma->friction * mb->friction);
-        in.restitution = std::max(ma->restitution, mb->restitution);
+        in.friction = friction;
+        in.restitution = restitution;
         in.key = (static_cast<std::uint64_t>(c.a.value) << 32) |
                  (c.b.valid() ? c.b.value : (0x80000000u | static_cast<std::uint32_t>(c.plane.value)));
       };
       switch (pointMode_[j]) {
-        case kNone: continue;
         case kRaw:
           for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], cs.contacts[idx[k]].normal, cs.contacts[idx[k]].depth);
           continue;
