@@ -1,0 +1,111 @@
+// The thread pool hands out every item exactly once, splits ranges as documented, and keeps working
+// after its workers have gone to sleep.
+#include "engine/core/thread_pool.hpp"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <numeric>
+#include <thread>
+#include <vector>
+
+namespace volpar {
+namespace {
+
+TEST(ThreadPool, RunCoversEveryIndexOnceInContiguousOrderedRanges) {
+  for (const int workers : {1, 2, 3}) {
+    ThreadPool pool(workers);
+    for (const std::size_t n : {1u, 2u, 5u, 1000u}) {
+      std::vector<int> hits(n, 0);
+      std::vector<std::size_t> begins(static_cast<std::size_t>(workers), n), ends(static_cast<std::size_t>(workers), n);
+      pool.run(n, [&](int w, std::size_t begin, std::size_t end) {
+        begins[static_cast<std::size_t>(w)] = begin;
+        ends[static_cast<std::size_t>(w)] = end;
+        for (std::size_t i = begin; i < end; ++i) ++hits[i];
+      });
+      for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(hits[i], 1) << "workers " << workers << ", n " << n << ", i " << i;
+      // worker w's range is [n w / W, n (w + 1) / W)
+      std::vector<std::size_t> bounds;
+      pool.split(n, nullptr, bounds);
+      for (std::size_t w = 0; w < static_cast<std::size_t>(workers); ++w) {
+        EXPECT_EQ(bounds[w], n * w / static_cast<std::size_t>(workers));
+        if (bounds[w] < bounds[w + 1]) {
+          EXPECT_EQ(begins[w], bounds[w]);
+          EXPECT_EQ(ends[w], bounds[w + 1]);
+        }
+      }
+    }
+  }
+}
+
+TEST(ThreadPool, WeightedSplitBalancesByCumulativeWeight) {
+  ThreadPool pool(2);
+  // one heavy item first: the first worker takes it alone
+  const std::vector<std::size_t> weights{100, 1, 1, 1, 1, 1, 1, 1, 1, 1};
+  std::vector<std::size_t> bounds;
+  pool.split(weights.size(), &weights, bounds);
+  ASSERT_EQ(bounds.size(), 3u);
+  EXPECT_EQ(bounds[0], 0u);
+  EXPECT_EQ(bounds[1], 1u);
+  EXPECT_EQ(bounds[2], weights.size());
+}
+
+TEST(ThreadPool, RunItemsHandsOutEveryItemExactlyOnceWhateverItsCost) {
+  for (const int workers : {1, 2, 4}) {
+    ThreadPool pool(workers);
+    const std::size_t n = 64;
+    std::vector<std::atomic<int>> hits(n);
+    std::vector<double> out(n, 0.0);
+    pool.runItems(n, [&](int worker, std::size_t i) {
+      ASSERT_GE(worker, 0);
+      ASSERT_LT(worker, workers);
+      hits[i].fetch_add(1);
+      // uneven items: every eighth is long
+      double x = static_cast<double>(i);
+      for (int k = 0; k < (i % 8 == 0 ? 20000 : 10); ++k) x = x * 0.5 + 1.0;
+      out[i] = x;
+    });
+    for (std::size_t i = 0; i < n; ++i) {
+      EXPECT_EQ(hits[i].load(), 1) << "item " << i;
+      EXPECT_GT(out[i], 0.0);
+    }
+  }
+}
+
+TEST(ThreadPool, WorkersWakeAfterSleepingAndResultsStayOrdered) {
+  ThreadPool pool(2);
+  std::vector<std::size_t> sums;
+  for (int round = 0; round < 3; ++round) {
+    // idle long enough for the workers to stop spinning and sleep
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    std::vector<std::size_t> partial(2, 0);
+    pool.run(10000, [&](int w, std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) partial[static_cast<std::size_t>(w)] += i;
+    });
+    sums.push_back(partial[0] + partial[1]);
+  }
+  for (const std::size_t s : sums) EXPECT_EQ(s, 10000u * 9999u / 2u);
+}
+
+TEST(SpinBarrier, NoThreadPassesBeforeAllArrive) {
+  ThreadPool pool(3);
+  SpinBarrier barrier;
+  barrier.reset(3);
+  std::atomic<int> arrived{0};
+  std::vector<int> seenAfter(3, 0);
+  pool.run(3, [&](int w, std::size_t, std::size_t) {
+    for (int phase = 1; phase <= 50; ++phase) {
+      arrived.fetch_add(1);
+      barrier.wait();
+      // everyone of this phase has arrived
+      if (arrived.load() < 3 * phase) seenAfter[static_cast<std::size_t>(w)] = -1;
+      barrier.wait();
+    }
+  });
+  for (const int s : seenAfter) EXPECT_EQ(s, 0);
+  EXPECT_EQ(arrived.load(), 150);
+}
+
+}  // namespace
+}  // namespace volpar
