@@ -149,8 +149,9 @@ class NarrowPhase {
   };
 
   /// Scratch and output of one worker thread.
-  /// The output of a chunk of the groups, merged in order afterwards.
-  struct Output {
+  /// The output of a chunk of the groups, merged in order afterwards. (Chunks and workers start on cache
+  /// lines of their own: two threads filling neighbouring ones must not share one.)
+  struct alignas(64) Output {
     std::vector<ContactPatch> patches;
     std::vector<std::uint32_t> contacts;
     NarrowPhaseStats stats;
@@ -158,7 +159,7 @@ class NarrowPhase {
     // where it goes in the merged output
     std::size_t patchBase = 0, contactBase = 0, groupBase = 0, pairBase = 0, orderBase = 0, cachedPatchBase = 0;
   };
-  struct Worker {
+  struct alignas(64) Worker {
     Output* o = nullptr;  // the chunk being worked on
     // scratch, reused across patches and steps
     std::vector<std::uint32_t> parent, order;

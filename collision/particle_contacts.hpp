@@ -134,7 +134,8 @@ class ContactFinder {
     }
   };
   /// Output and cache of one chunk of the body pairs (and of the planes' pairs), merged in order afterwards.
-  struct Chunk {
+  /// (A cache line of its own: two threads filling neighbouring chunks must not share one.)
+  struct alignas(64) Chunk {
     ContactSet out;     // of body pairs
     ContactSet planes;  // of bodies on planes
     PairCache cache;
