@@ -190,7 +190,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   const std::size_t groups = contacts.groups.size();
   const bool shared = pool && pool->worthSharing(groups, 512);
   const std::size_t workers = shared ? static_cast<std::size_t>(pool->workers()) : 1;
-  const std::size_t chunks = shared ? kChunksPerWorker * workers : 1;
+  const std::size_t chunks = shared ? ThreadPool::kChunksPerWorker * workers : 1;
   if (workers_.size() < workers) workers_.resize(workers);
   for (std::size_t k = 0; k < workers; ++k)
     if (workers_[k].mark.size() < in.particles->size()) workers_[k].mark.resize(in.particles->size(), 0);

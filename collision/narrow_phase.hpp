@@ -211,8 +211,6 @@ class NarrowPhase {
   std::vector<Worker> workers_;
   Cache cache_;                        // what the last run computed or reused, for the next
   std::vector<Output> chunks_;
-  /// Chunks per worker thread when the groups are shared: enough for the uneven ones to balance out.
-  static constexpr std::size_t kChunksPerWorker = 8;
 };
 
 /// World-frame outward normal of a surface particle from the cache (zero for interior particles).

@@ -298,7 +298,7 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
   // body pairs, then bodies on planes, in chunks of contiguous ranges that the workers take as they go;
   // the chunks' outputs are merged in order, all body pairs' contacts first, then all planes'
   const bool shared = pool && pool->worthSharing(pairs.size(), 512);
-  const std::size_t chunks = shared ? kChunksPerWorker * static_cast<std::size_t>(pool->workers()) : 1;
+  const std::size_t chunks = shared ? ThreadPool::kChunksPerWorker * static_cast<std::size_t>(pool->workers()) : 1;
   if (chunks_.size() < chunks) chunks_.resize(chunks);
   for (std::size_t k = 0; k < chunks; ++k) {
     chunks_[k].out.clear();

@@ -161,8 +161,6 @@ class ContactFinder {
   bool reuse_ = true;
   PairCache cache_;              // candidate lists of the last find(), for the next
   std::vector<Chunk> chunks_;
-  /// Chunks per worker thread when the pairs are shared: enough for the uneven ones to balance out.
-  static constexpr std::size_t kChunksPerWorker = 8;
   std::size_t reusedPairs_ = 0;
   std::vector<BodyId> deformables_;
   std::vector<std::uint32_t> adjacencyStart_;  // CSR over particles [P + 1]

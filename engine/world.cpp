@@ -458,12 +458,22 @@ void World::integrateVelocities() {
   for (const BodyId id : rigidBodies_) integrateRigidVelocity(bodies_.state[id.index()], settings_.gravity, settings_.dt);
 }
 
+std::uint32_t* World::solverSlot(ParticleId p) {
+  const BodyId b = particles_.body[p.index()];
+  switch (bodies_.info[b.index()].kind) {
+    case BodyKind::Static: return nullptr;
+    case BodyKind::Rigid: return &bodySolverIndex_[b.index()];
+    default: return &particleSolverIndex_[p.index()];
+  }
+}
+
 std::uint32_t World::solverIndex(ParticleId p) {
+  std::uint32_t* const found = solverSlot(p);
+  if (!found) return ContactPointInput::kFixed;
+  std::uint32_t& slot = *found;
+  if (slot != ContactPointInput::kFixed) return slot;
   const BodyId b = particles_.body[p.index()];
   const BodyInfo& info = bodies_.info[b.index()];
-  if (info.kind == BodyKind::Static) return ContactPointInput::kFixed;
-  std::uint32_t& slot = info.kind == BodyKind::Rigid ? bodySolverIndex_[b.index()] : particleSolverIndex_[p.index()];
-  if (slot != ContactPointInput::kFixed) return slot;
   slot = static_cast<std::uint32_t>(solverBodies_.size());
   SolverBody sb;
   if (info.kind == BodyKind::Rigid) {
@@ -485,6 +495,54 @@ std::uint32_t World::solverIndex(ParticleId p) {
   solverBodies_.push_back(sb);
   return slot;
 }
+
+namespace {
+
+/// A rigid patch's manifold of four of its `count` contacts `idx` (Bullet's choice): the deepest along the
+/// normal, the one farthest from it, the one farthest from their line, and the one that adds most area on
+/// the far side. Returns positions in idx; count must be above 4.
+std::array<std::uint32_t, 4> manifoldOfFour(const ContactSet& cs, const std::uint32_t* idx, std::uint32_t count,
+                                            const std::vector<double>& depth) {
+  std::array<std::uint32_t, 4> reduced{};
+  std::size_t chosen = 0;
+  const auto pointOf = [&](std::uint32_t k) -> const Vec3& { return cs.contacts[idx[k]].point; };
+  std::uint32_t deepest = 0;
+  for (std::uint32_t k = 1; k < count; ++k)
+    if (depth[idx[k]] > depth[idx[deepest]]) deepest = k;
+  reduced[chosen++] = deepest;
+  const auto best = [&](auto score) {
+    const auto taken = [&](std::uint32_t k) {
+      return std::find(reduced.begin(), reduced.begin() + static_cast<std::ptrdiff_t>(chosen), k) !=
+             reduced.begin() + static_cast<std::ptrdiff_t>(chosen);
+    };
+    std::uint32_t arg = 0;
+    double top = -1.0;
+    for (std::uint32_t k = 0; k < count; ++k) {
+      if (taken(k)) continue;
+      const double v = score(pointOf(k));
+      if (v > top) {
+        top = v;
+        arg = k;
+      }
+    }
+    return arg;
+  };
+  const Vec3 p0 = pointOf(deepest);
+  reduced[chosen++] = best([&](const Vec3& x) { return (x - p0).squaredNorm(); });
+  const Vec3 p1 = pointOf(reduced[1]);
+  reduced[chosen++] = best([&](const Vec3& x) { return (x - p0).cross(x - p1).squaredNorm(); });
+  const Vec3 p2 = pointOf(reduced[2]);
+  const Vec3 triNormal = (p1 - p0).cross(p2 - p0);
+  reduced[chosen++] = best([&](const Vec3& x) {
+    // area added outside the triangle: the largest of the three triangles the point makes with an edge
+    const double a = (x - p0).cross(x - p1).dot(triNormal), b = (x - p1).cross(x - p2).dot(triNormal),
+                 c = (x - p2).cross(x - p0).dot(triNormal);
+    return std::max({-a, -b, -c});
+  });
+  return reduced;
+}
+
+}  // namespace
 
 void World::buildContactPoints() {
   const ContactSet& cs = contacts_;
@@ -527,12 +585,8 @@ void World::buildContactPoints() {
   // the points themselves: patches shared among the workers, each point written at its patch's place
   const auto fill = [&](int, std::size_t begin, std::size_t end) {
     const auto slotOf = [&](ParticleId p) {
-      const BodyId b = particles_.body[p.index()];
-      switch (kind(b)) {
-        case BodyKind::Static: return ContactPointInput::kFixed;
-        case BodyKind::Rigid: return bodySolverIndex_[b.index()];
-        default: return particleSolverIndex_[p.index()];
-      }
+      const std::uint32_t* slot = solverSlot(p);
+      return slot ? *slot : ContactPointInput::kFixed;
     };
     const auto arm = [&](ParticleId p, const Vec3& point) -> Vec3 {
       const BodyId b = particles_.body[p.index()];
@@ -573,42 +627,7 @@ void World::buildContactPoints() {
           continue;
         default: break;
       }
-      // a manifold of four points (Bullet's choice): the deepest, the one farthest from it, the one
-      // farthest from their line, and the one that adds most area on the far side
-      std::array<std::uint32_t, 4> reduced{};
-      std::size_t chosen = 0;
-      auto pointOf = [&](std::uint32_t k) -> const Vec3& { return cs.contacts[idx[k]].point; };
-      std::uint32_t deepest = 0;
-      for (std::uint32_t k = 1; k < patch.count; ++k)
-        if (ps.depthAlongNormal[idx[k]] > ps.depthAlongNormal[idx[deepest]]) deepest = k;
-      reduced[chosen++] = deepest;
-      auto best = [&](auto score) {
-        std::uint32_t arg = 0;
-        double top = -1.0;
-        for (std::uint32_t k = 0; k < patch.count; ++k) {
-          if (std::find(reduced.begin(), reduced.begin() + static_cast<std::ptrdiff_t>(chosen), k) !=
-              reduced.begin() + static_cast<std::ptrdiff_t>(chosen))
-            continue;
-          const double v = score(pointOf(k));
-          if (v > top) {
-            top = v;
-            arg = k;
-          }
-        }
-        return arg;
-      };
-      const Vec3 p0 = pointOf(deepest);
-      reduced[chosen++] = best([&](const Vec3& x) { return (x - p0).squaredNorm(); });
-      const Vec3 p1 = pointOf(reduced[1]);
-      reduced[chosen++] = best([&](const Vec3& x) { return (x - p0).cross(x - p1).squaredNorm(); });
-      const Vec3 p2 = pointOf(reduced[2]);
-      const Vec3 triNormal = (p1 - p0).cross(p2 - p0);
-      reduced[chosen++] = best([&](const Vec3& x) {
-        // area added outside the triangle: the largest of the three triangles the point makes with an edge
-        const double a = (x - p0).cross(x - p1).dot(triNormal), b = (x - p1).cross(x - p2).dot(triNormal),
-                     c = (x - p2).cross(x - p0).dot(triNormal);
-        return std::max({-a, -b, -c});
-      });
+      const std::array<std::uint32_t, 4> reduced = manifoldOfFour(cs, idx, patch.count, ps.depthAlongNormal);
       for (const std::uint32_t k : reduced) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
     }
   };

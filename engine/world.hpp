@@ -134,6 +134,10 @@ class World {
   [[nodiscard]] std::pair<const Material*, const Material*> contactMaterials(ParticleId a, ParticleId b,
                                                                              PlaneId plane) const;
   void buildContactPoints();
+  /// The solver-body slot a particle's contacts use (its rigid body's, or its own for a deformable
+  /// body's); null for static bodies. kFixed in it: not yet a solver body this step.
+  std::uint32_t* solverSlot(ParticleId p);
+  /// The particle's solver body, made on first use this step (kFixed for static bodies).
   std::uint32_t solverIndex(ParticleId p);
   void integratePositions();
   void applyBreakage();

@@ -55,6 +55,8 @@ class ThreadPool {
   /// barriers): about a millisecond, longer than the gaps between the runs of one step, short beside a
   /// frame.
   static constexpr int kSpins = 20000;
+  /// Items per worker to cut uneven work into for runItems: enough for the uneven ones to balance out.
+  static constexpr std::size_t kChunksPerWorker = 8;
   /// Whether n items are worth handing out: at least `perWorker` for every worker (waking the workers
   /// costs more than a few small items). Sharing or not never changes a result.
   [[nodiscard]] bool worthSharing(std::size_t n, std::size_t perWorker) const {
