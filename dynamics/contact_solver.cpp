@@ -70,13 +70,14 @@ inline std::uint64_t hashSlot(std::uint64_t key, int bits) { return (key * 0x9E3
 
 }  // namespace
 
-void ContactSolver::order(std::span<const SolverBody> bodies, std::span<const ContactPointInput> points) {
+void ContactSolver::order(std::span<const SolverBody> bodies) {
+  const std::size_t nb = bodies.size(), np = ab_.size();
   // the two halves: bodies sorted by x (ties by index), split at the median
-  const std::size_t nb = bodies.size();
   byX_.resize(nb);
   for (std::size_t i = 0; i < nb; ++i) byX_[i] = {bodies[i].position.x(), static_cast<std::uint32_t>(i)};
   const std::size_t half = nb / 2;
   if (nb > 0) std::nth_element(byX_.begin(), byX_.begin() + static_cast<std::ptrdiff_t>(half), byX_.end());
+  half_ = half;
   side_.resize(nb);
   for (std::size_t i = 0; i < nb; ++i) side_[byX_[i].second] = i < half ? 0 : 1;
   // each half's velocities contiguous, a cache line apart (two threads must not share a line): the left
@@ -90,34 +91,36 @@ void ContactSolver::order(std::span<const SolverBody> bodies, std::span<const Co
                 static_cast<std::uint32_t>(right + 1 + kGap)};
   slots_ = right + 2 + kGap;
   // a point belongs to the half of its bodies (the fixed side belongs to both), else it joins the halves
-  const auto partOf = [&](const ContactPointInput& in) -> std::size_t {
-    if (in.a == kFixed) return side_[in.b];
-    if (in.b == kFixed) return side_[in.a];
-    return side_[in.a] == side_[in.b] ? side_[in.a] : 2;
+  const auto partOf = [&](const std::pair<std::uint32_t, std::uint32_t>& p) -> std::size_t {
+    if (p.first == kFixed) return side_[p.second];
+    if (p.second == kFixed) return side_[p.first];
+    return side_[p.first] == side_[p.second] ? side_[p.first] : 2;
   };
   std::array<std::size_t, 3> count{};
-  for (const ContactPointInput& in : points) ++count[partOf(in)];
-  parts_ = {0, count[0], count[0] + count[1], points.size()};
+  for (const auto& p : ab_) ++count[partOf(p)];
+  parts_ = {0, count[0], count[0] + count[1], np};
   std::array<std::size_t, 3> next{parts_[0], parts_[1], parts_[2]};
-  order_.resize(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) order_[next[partOf(points[i])]++] = static_cast<std::uint32_t>(i);
+  order_.resize(np);
+  for (std::size_t i = 0; i < np; ++i) order_[next[partOf(ab_[i])]++] = static_cast<std::uint32_t>(i);
+  // (the points' ranks within their body pair, for spread(), which reorders from scratch_ into order_)
+  rank_.resize(np);
+  for (std::size_t i = 0; i < np; ++i) rank_[i] = i > 0 && ab_[i] == ab_[i - 1] ? rank_[i - 1] + 1 : 0;
+  scratch_.resize(np);
+  std::swap(order_, scratch_);
+}
+
+void ContactSolver::spread(std::size_t part) {
   // within a part, the points of one body pair (which come one after another) spread apart: first every
   // pair's first point, then every pair's second, and so on. Neighbouring rows then mostly touch other
   // bodies, and the processor overlaps their work instead of waiting for each row's result
-  rank_.resize(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i)
-    rank_[i] = i > 0 && points[i].a == points[i - 1].a && points[i].b == points[i - 1].b ? rank_[i - 1] + 1 : 0;
-  scratch_.resize(points.size());
-  for (std::size_t part = 0; part < 3; ++part) {
-    std::uint32_t ranks = 0;
-    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) ranks = std::max(ranks, rank_[order_[k]] + 1);
-    rankStart_.assign(ranks + 1, 0);
-    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) ++rankStart_[rank_[order_[k]] + 1];
-    for (std::size_t q = 1; q <= ranks; ++q) rankStart_[q] += rankStart_[q - 1];
-    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k)
-      scratch_[parts_[part] + rankStart_[rank_[order_[k]]]++] = order_[k];
-  }
-  std::swap(order_, scratch_);
+  std::vector<std::uint32_t>& start = rankStart_[part];
+  const std::vector<std::uint32_t>& from = scratch_;
+  std::uint32_t ranks = 0;
+  for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) ranks = std::max(ranks, rank_[from[k]] + 1);
+  start.assign(ranks + 1, 0);
+  for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) ++start[rank_[from[k]] + 1];
+  for (std::size_t q = 1; q <= ranks; ++q) start[q] += start[q - 1];
+  for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) order_[parts_[part] + start[rank_[from[k]]]++] = from[k];
 }
 
 void ContactSolver::velocitySweep(std::span<const std::uint32_t> rows) {
@@ -309,32 +312,60 @@ struct Motion {
 
 }  // namespace
 
+namespace {
+
+/// The velocity step of a batch whose bodies' velocities are in m (the arithmetic of velocitySweep).
+template <class Batch>
+inline void velocityBatch(Batch& b, Motion& m) {
+  const F4 old1 = b.lambdaT1, old2 = b.lambdaT2;
+  F4 l1 = old1 - b.massT1 * m.along(b.t1);
+  F4 l2 = old2 - b.massT2 * m.along(b.t2);
+  const F4 limit = b.friction * b.lambdaN;
+  const F4 mag2 = l1 * l1 + l2 * l2;
+  // (limit / |l| where that is below 1: the cone's bound, without a lane-by-lane select)
+  const F4 scale = (limit / mag2.max(1e-30f).sqrt()).min(1.0f);
+  l1 *= scale;
+  l2 *= scale;
+  b.lambdaT1 = l1;
+  b.lambdaT2 = l2;
+  m.push(b.t1, l1 - old1, b.invMassA, b.invMassB);
+  m.push(b.t2, l2 - old2, b.invMassA, b.invMassB);
+  const F4 oldN = b.lambdaN;
+  b.lambdaN = (oldN + b.massN * (b.targetN - m.along(b.n))).max(0.0f);
+  m.push(b.n, b.lambdaN - oldN, b.invMassA, b.invMassB);
+}
+
+}  // namespace
+
 void ContactSolver::velocityPart(std::size_t part) {
-  // the same arithmetic as velocitySweep, four rows at once
+  // four rows at once; and two batches of one colour at once, since they share no body (other than the
+  // fixed side, which stays zero): each one's work then overlaps the other's waiting for its results
   V4* const v = v_.data();
   V4* const w = w_.data();
-  for (Batch& b : batches_[part].batches) {
-    Motion m;
-    m.load(v, w, b.a, b.b);
-    const F4 old1 = b.lambdaT1, old2 = b.lambdaT2;
-    F4 l1 = old1 - b.massT1 * m.along(b.t1);
-    F4 l2 = old2 - b.massT2 * m.along(b.t2);
-    const F4 limit = b.friction * b.lambdaN;
-    const F4 mag2 = l1 * l1 + l2 * l2;
-    // (limit / |l| where that is below 1: the cone's bound, without a lane-by-lane select)
-    const F4 scale = (limit / mag2.max(1e-30f).sqrt()).min(1.0f);
-    l1 *= scale;
-    l2 *= scale;
-    b.lambdaT1 = l1;
-    b.lambdaT2 = l2;
-    m.push(b.t1, l1 - old1, b.invMassA, b.invMassB);
-    m.push(b.t2, l2 - old2, b.invMassA, b.invMassB);
-    const F4 oldN = b.lambdaN;
-    b.lambdaN = (oldN + b.massN * (b.targetN - m.along(b.n))).max(0.0f);
-    m.push(b.n, b.lambdaN - oldN, b.invMassA, b.invMassB);
-    m.store(v, w, b.a, b.b);
+  PartBatches& pb = batches_[part];
+  for (std::size_t c = 0; c < 64; ++c) {
+    std::size_t j = pb.start[c] / 4;
+    const std::size_t end = pb.start[c + 1] / 4;
+    for (; j + 1 < end; j += 2) {
+      Batch& b0 = pb.batches[j];
+      Batch& b1 = pb.batches[j + 1];
+      Motion m0, m1;
+      m0.load(v, w, b0.a, b0.b);
+      m1.load(v, w, b1.a, b1.b);
+      velocityBatch(b0, m0);
+      velocityBatch(b1, m1);
+      m0.store(v, w, b0.a, b0.b);
+      m1.store(v, w, b1.a, b1.b);
+    }
+    if (j < end) {
+      Batch& b = pb.batches[j];
+      Motion m;
+      m.load(v, w, b.a, b.b);
+      velocityBatch(b, m);
+      m.store(v, w, b.a, b.b);
+    }
   }
-  velocitySweep(batches_[part].rest);
+  velocitySweep(pb.rest);
 }
 
 bool ContactSolver::positionPart(std::size_t part) {
@@ -370,40 +401,72 @@ const ContactSolver::Cached* ContactSolver::cached(std::uint64_t key) const {
 void ContactSolver::remember() {
   // a key can repeat when two points share a particle pair (raw normals never, planes never): the first
   // in solving order is found
-  std::swap(cacheKeys_, keys_);  // (keys_ is rewritten by the next step's preparation)
-  std::swap(cache_, nextCache_);
   std::size_t size = 16;
   while (size < 2 * rows_.size()) size *= 2;
   table_.assign(size, kEmpty);
   tableBits_ = std::countr_zero(size);
   for (std::size_t k = 0; k < rows_.size(); ++k) {
-    for (std::uint64_t i = hashSlot(cacheKeys_[k], tableBits_);; i = (i + 1) & (table_.size() - 1)) {
+    for (std::uint64_t i = hashSlot(keys_[k], tableBits_);; i = (i + 1) & (table_.size() - 1)) {
       if (table_[i] == kEmpty) {
         table_[i] = static_cast<std::uint32_t>(k);
         break;
       }
-      if (cacheKeys_[table_[i]] == cacheKeys_[k]) break;
+      if (keys_[table_[i]] == keys_[k]) break;
     }
   }
 }
 
 void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactPointInput> points, double dt,
                           ThreadPool* pool) {
-  const std::size_t nb = bodies.size();
-  order(bodies, points);
-  // velocities in their slots; the fixed side of each part has an always-zero entry of its own
-  v_.assign(slots_, V4::Zero());
-  w_.assign(slots_, V4::Zero());
-  pv_.assign(slots_, V4::Zero());
-  pw_.assign(slots_, V4::Zero());
-  for (std::size_t i = 0; i < nb; ++i) {
-    v_[slot_[i]] = narrow(bodies[i].v);
-    w_[slot_[i]] = narrow(bodies[i].w);
-    pv_[slot_[i]] = narrow(bodies[i].pv);
-    pw_[slot_[i]] = narrow(bodies[i].pw);
-  }
-  rows_.resize(points.size());
-  keys_.resize(points.size());
+  const std::size_t nb = bodies.size(), np = points.size();
+  const int workers = pool && np > 0 && pool->worthSharing(np, 1024) ? 2 : 1;
+  barrier_.reset(workers);
+  ab_.resize(np);
+  const auto setUp = [&](int worker) {
+    // the points' bodies, compact (each thread reads its share of the points once; the ordering then
+    // works in the cache)
+    const auto share = [&](int w) { return np * static_cast<std::size_t>(w) / static_cast<std::size_t>(workers); };
+    for (std::size_t i = share(worker); i < share(worker + 1); ++i) ab_[i] = {points[i].a, points[i].b};
+    barrier_.wait();
+    if (worker == 0) {
+      order(bodies);
+      v_.resize(slots_);
+      w_.resize(slots_);
+      pv_.resize(slots_);
+      pw_.resize(slots_);
+      rows_.resize(np);
+      keys_.resize(np);
+      impulses_.resize(np);
+      nextCache_.resize(np);
+    }
+    barrier_.wait();
+    // each half's velocities in their slots and its points spread, by its own thread; each part's fixed
+    // side has an entry of its own, always zero
+    const auto load = [&](std::size_t side) {
+      for (std::size_t k = side == 0 ? 0 : half_; k < (side == 0 ? half_ : nb); ++k) {
+        const std::uint32_t i = byX_[k].second, s = slot_[i];
+        v_[s] = narrow(bodies[i].v);
+        w_[s] = narrow(bodies[i].w);
+        pv_[s] = narrow(bodies[i].pv);
+        pw_[s] = narrow(bodies[i].pw);
+      }
+      const std::uint32_t s = fixedSlot_[side];
+      v_[s] = w_[s] = pv_[s] = pw_[s] = V4::Zero();
+      spread(side);
+    };
+    if (workers == 1) {
+      load(0);
+      load(1);
+    } else {
+      load(static_cast<std::size_t>(worker));
+    }
+    if (worker == 0) {
+      const std::uint32_t s = fixedSlot_[2];
+      v_[s] = w_[s] = pv_[s] = pw_[s] = V4::Zero();
+      spread(2);
+    }
+    barrier_.wait();
+  };
 
   // prepare rows: Jacobians, effective masses, restitution targets
   const auto prepare = [&](std::size_t part) {
@@ -459,8 +522,6 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   // to the bodies' double velocities at the point's double arms. The iterations' own single-precision
   // velocities agree with these to rounding, but only these conserve momentum to double precision (and a
   // body without contacts keeps its velocity bit for bit)
-  impulses_.resize(rows_.size());
-  nextCache_.resize(rows_.size());
   std::array<double, 3> normalSum{};
   const auto finish = [&](std::size_t part) {
     double sum = 0.0;
@@ -487,13 +548,12 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
 
   // everything in the same order of phases, on one thread or two: prepare (after which the approach
   // speeds are taken), warm start, the iterations; in each phase the two halves, then the joining points
-  const int workers = pool && pool->worthSharing(rows_.size(), 1024) ? 2 : 1;
-  barrier_.reset(workers);
   std::array<std::size_t, 3> started{};
   // (two sets used alternately, so a thread deciding to stop never reads a flag the other has
   // already overwritten for the next sweep)
   std::array<std::array<std::uint8_t, 3>, 2> moved{};
   const auto iterate = [&](int worker, std::size_t begin, std::size_t end) {
+    setUp(worker);
     for (std::size_t part = begin; part < end; ++part) prepare(part);
     if (worker == 0) prepare(2);
     barrier_.wait();
@@ -531,9 +591,11 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       bodies[i].pw = wide(pw_[slot_[i]]);
     }
     barrier_.wait();
+    // (this step's keys for the next step's warm start: found while the joining points finish)
     if (worker == 0) finish(2);
+    if (worker == workers - 1) remember();
   };
-  if (workers == 2 && !rows_.empty()) {
+  if (workers == 2) {
     // exactly two ranges of one half each, whatever the pool's size
     pool->run(static_cast<std::size_t>(pool->workers()), [&](int worker, std::size_t, std::size_t) {
       if (worker < 2) iterate(worker, static_cast<std::size_t>(worker), static_cast<std::size_t>(worker) + 1);
@@ -543,7 +605,8 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   }
   warmStarted_ = started[0] + started[1] + started[2];
   totalNormalImpulse_ = normalSum[0] + normalSum[1] + normalSum[2];
-  remember();
+  std::swap(cacheKeys_, keys_);  // (keys_ is rewritten by the next step's preparation)
+  std::swap(cache_, nextCache_);
 }
 
 }  // namespace volpar

@@ -143,7 +143,9 @@ class ContactSolver {
   SolverSettings settings_;
   /// Rows in solving order: the rows within the left half of the bodies (by x), then those within the
   /// right half, then those joining the two; `parts_` holds the three ranges' boundaries.
-  void order(std::span<const SolverBody> bodies, std::span<const ContactPointInput> points);
+  void order(std::span<const SolverBody> bodies);
+  /// Reorders a part's rows (from scratch_ into order_) so that the points of one body pair do not follow each other.
+  void spread(std::size_t part);
   /// One sweep of the velocity (or pseudo-velocity) iteration over the given rows, one by one.
   void velocitySweep(std::span<const std::uint32_t> rows);
   /// Returns whether a point's pseudo velocity changed by more than the tolerance.
@@ -151,14 +153,16 @@ class ContactSolver {
 
   /// The last step's impulses for a key, or null.
   [[nodiscard]] const Cached* cached(std::uint64_t key) const;
-  /// Keeps this step's impulses for the next.
+  /// Indexes this step's keys (keys_) for the next step's warm start.
   void remember();
 
   std::vector<Row> rows_;
   std::array<PartBatches, 3> batches_;
   std::vector<std::uint64_t> keys_;  // per row: its warm-starting key
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> ab_;  // per input point: its bodies
   std::vector<std::uint32_t> order_;  // per row: the index of its input point
-  std::vector<std::uint32_t> rank_, scratch_, rankStart_;  // (ordering scratch)
+  std::vector<std::uint32_t> rank_, scratch_;  // (ordering scratch)
+  std::array<std::vector<std::uint32_t>, 3> rankStart_;  // per part (spread() runs for two parts at once)
   std::array<std::size_t, 4> parts_{};
   std::vector<std::uint8_t> side_;    // per solver body: 0 left, 1 right
   std::vector<std::uint32_t> slot_;   // per solver body: its entry in the velocity arrays
@@ -168,6 +172,7 @@ class ContactSolver {
   SpinBarrier barrier_;
   // velocities of the solver bodies and of each part's fixed side (always zero)
   std::vector<V4> v_, w_, pv_, pw_;
+  std::size_t half_ = 0;  // bodies in the left half (the first of byX_)
   std::vector<std::uint64_t> cacheKeys_;  // by row of the last step
   std::vector<Cached> cache_;             // by row of the last step
   std::vector<Cached> nextCache_;         // by row of this step (becomes cache_)

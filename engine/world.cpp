@@ -631,7 +631,8 @@ void World::buildContactPoints() {
       for (const std::uint32_t k : reduced) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
     }
   };
-  if (pool_ && pool_->worthSharing(np, 512)) pool_->run(np, fill);
+  // (patches differ in cost, a reduced one most: handed out in chunks)
+  if (pool_ && pool_->worthSharing(np, 512)) pool_->runChunks(np, fill);
   else fill(0, 0, np);
 }
 

@@ -100,6 +100,12 @@ void ThreadPool::runItems(std::size_t n, const std::function<void(int, std::size
   });
 }
 
+void ThreadPool::runChunks(std::size_t n, const std::function<void(int, std::size_t, std::size_t)>& f) {
+  if (n == 0) return;
+  const std::size_t chunks = std::min(n, kChunksPerWorker * static_cast<std::size_t>(workers_));
+  runItems(chunks, [&](int worker, std::size_t c) { f(worker, n * c / chunks, n * (c + 1) / chunks); });
+}
+
 void ThreadPool::loop(int worker) {
   std::size_t seen = 0;
   for (;;) {

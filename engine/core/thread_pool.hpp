@@ -72,6 +72,9 @@ class ThreadPool {
   /// finish one (uneven items balance themselves). Which worker runs an item depends on timing: f must
   /// write only to the item's own output (merged in item order afterwards) and to the worker's scratch.
   void runItems(std::size_t n, const std::function<void(int, std::size_t)>& f);
+  /// Calls f(worker, begin, end) for kChunksPerWorker consecutive ranges of [0, n) per worker, handed out
+  /// as with runItems: for items of uneven cost that write only to their own places.
+  void runChunks(std::size_t n, const std::function<void(int, std::size_t, std::size_t)>& f);
   /// The range boundaries run() uses: bounds[w] .. bounds[w + 1] for worker w (workers + 1 entries).
   void split(std::size_t n, const std::vector<std::size_t>* weights, std::vector<std::size_t>& bounds) const;
 

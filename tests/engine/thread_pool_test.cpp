@@ -73,6 +73,27 @@ TEST(ThreadPool, RunItemsHandsOutEveryItemExactlyOnceWhateverItsCost) {
   }
 }
 
+TEST(ThreadPool, RunChunksCoversEveryIndexOnceInConsecutiveRanges) {
+  for (const int workers : {1, 2, 3}) {
+    ThreadPool pool(workers);
+    for (const std::size_t n : {1u, 7u, 16u, 1001u}) {
+      std::vector<std::atomic<int>> hits(n);
+      std::atomic<std::size_t> ranges{0};
+      pool.runChunks(n, [&](int worker, std::size_t begin, std::size_t end) {
+        ASSERT_GE(worker, 0);
+        ASSERT_LT(worker, workers);
+        ASSERT_LT(begin, end);
+        ASSERT_LE(end, n);
+        ranges.fetch_add(1);
+        for (std::size_t i = begin; i < end; ++i) hits[i].fetch_add(1);
+      });
+      for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(hits[i].load(), 1) << "workers " << workers << ", n " << n << ", i " << i;
+      // as many ranges as chunks per worker allow, never more than items
+      EXPECT_EQ(ranges.load(), std::min(n, ThreadPool::kChunksPerWorker * static_cast<std::size_t>(workers)));
+    }
+  }
+}
+
 TEST(ThreadPool, WorkersWakeAfterSleepingAndResultsStayOrdered) {
   ThreadPool pool(2);
   std::vector<std::size_t> sums;
