@@ -62,7 +62,7 @@ void ThreadPool::split(std::size_t n, const std::vector<std::size_t>* weights, s
   }
 }
 
-void ThreadPool::run(std::size_t n, const std::function<void(int, std::size_t, std::size_t)>& f,
+void ThreadPool::run(std::size_t n, FunctionRef<void(int, std::size_t, std::size_t)> f,
                      const std::vector<std::size_t>* weights) {
   if (n == 0) return;
   if (workers_ == 1) {
@@ -87,7 +87,7 @@ void ThreadPool::run(std::size_t n, const std::function<void(int, std::size_t, s
   job_ = nullptr;
 }
 
-void ThreadPool::runItems(std::size_t n, const std::function<void(int, std::size_t)>& f) {
+void ThreadPool::runItems(std::size_t n, FunctionRef<void(int, std::size_t)> f) {
   if (n == 0) return;
   if (workers_ == 1 || n == 1) {
     for (std::size_t i = 0; i < n; ++i) f(0, i);
@@ -100,7 +100,7 @@ void ThreadPool::runItems(std::size_t n, const std::function<void(int, std::size
   });
 }
 
-void ThreadPool::runChunks(std::size_t n, const std::function<void(int, std::size_t, std::size_t)>& f) {
+void ThreadPool::runChunks(std::size_t n, FunctionRef<void(int, std::size_t, std::size_t)> f) {
   if (n == 0) return;
   const std::size_t chunks = std::min(n, kChunksPerWorker * static_cast<std::size_t>(workers_));
   runItems(chunks, [&](int worker, std::size_t c) { f(worker, n * c / chunks, n * (c + 1) / chunks); });

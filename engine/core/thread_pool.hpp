@@ -10,12 +10,37 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstddef>
-#include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace volpar {
+
+template <class Signature>
+class FunctionRef;
+
+/// A non-owning reference to a callable, for work handed to the pool: unlike std::function it never
+/// allocates (the step hands out work many times and must not allocate), and it is only valid while the
+/// callable lives, which for the pool's calls is until they return.
+template <class R, class... Args>
+class FunctionRef<R(Args...)> {
+ public:
+  template <class F>
+    requires(!std::is_same_v<std::remove_cvref_t<F>, FunctionRef>)
+  FunctionRef(F&& f) noexcept  // NOLINT(google-explicit-constructor): a lambda converts implicitly
+      : object_(const_cast<void*>(static_cast<const void*>(std::addressof(f)))),
+        call_([](void* o, Args... args) -> R {
+          return (*static_cast<std::remove_reference_t<F>*>(o))(std::forward<Args>(args)...);
+        }) {}
+  R operator()(Args... args) const { return call_(object_, std::forward<Args>(args)...); }
+
+ private:
+  void* object_;
+  R (*call_)(void*, Args...);
+};
 
 /// A barrier for the workers of one ThreadPool::run that meet many times in quick succession (the contact
 /// solver's phases): it spins briefly, then yields.
@@ -66,15 +91,15 @@ class ThreadPool {
   void setShareAll(bool on) { shareAll_ = on; }
   /// Calls f(worker, begin, end) for the ranges of [0, n), worker 0 on the calling thread; returns when
   /// all are done. `weights`, if given (size n), balances the ranges by cumulative weight instead of count.
-  void run(std::size_t n, const std::function<void(int, std::size_t, std::size_t)>& f,
+  void run(std::size_t n, FunctionRef<void(int, std::size_t, std::size_t)> f,
            const std::vector<std::size_t>* weights = nullptr);
   /// Calls f(worker, item) once for every item of [0, n), the workers taking the next item as they
   /// finish one (uneven items balance themselves). Which worker runs an item depends on timing: f must
   /// write only to the item's own output (merged in item order afterwards) and to the worker's scratch.
-  void runItems(std::size_t n, const std::function<void(int, std::size_t)>& f);
+  void runItems(std::size_t n, FunctionRef<void(int, std::size_t)> f);
   /// Calls f(worker, begin, end) for kChunksPerWorker consecutive ranges of [0, n) per worker, handed out
   /// as with runItems: for items of uneven cost that write only to their own places.
-  void runChunks(std::size_t n, const std::function<void(int, std::size_t, std::size_t)>& f);
+  void runChunks(std::size_t n, FunctionRef<void(int, std::size_t, std::size_t)> f);
   /// The range boundaries run() uses: bounds[w] .. bounds[w + 1] for worker w (workers + 1 entries).
   void split(std::size_t n, const std::vector<std::size_t>* weights, std::vector<std::size_t>& bounds) const;
 
@@ -90,7 +115,7 @@ class ThreadPool {
   std::atomic<int> pending_{0};             // workers still on the current run
   std::atomic<int> sleepers_{0};            // workers waiting on start_
   std::atomic<bool> stop_{false};
-  const std::function<void(int, std::size_t, std::size_t)>* job_ = nullptr;
+  const FunctionRef<void(int, std::size_t, std::size_t)>* job_ = nullptr;
   std::vector<std::size_t> bounds_;
 };
 
