@@ -185,8 +185,9 @@ void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, co
 
 void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out, ThreadPool* pool) {
   out.stats = NarrowPhaseStats{};
-  out.depthAlongNormal.assign(contacts.contacts.size(), 0.0);
-  out.patchOfContact.assign(contacts.contacts.size(), 0);
+  // (every contact of a group lands in one patch, whose workers write its depth and patch: no clearing)
+  out.depthAlongNormal.resize(contacts.contacts.size());
+  out.patchOfContact.resize(contacts.contacts.size());
   const std::size_t groups = contacts.groups.size();
   const bool shared = pool && pool->worthSharing(groups, 512);
   const std::size_t workers = shared ? static_cast<std::size_t>(pool->workers()) : 1;

@@ -25,25 +25,31 @@ void tangents(const Vec3& n, Vec3& t1, Vec3& t2) {
 V4 narrow(const Vec3& x) { return V4(static_cast<float>(x.x()), static_cast<float>(x.y()), static_cast<float>(x.z()), 0.0f); }
 Vec3 wide(const V4& x) { return x.head<3>().cast<double>(); }
 
-/// Velocity of B relative to A along the axis: J v.
-template <class Axis>
-inline float relative(const Axis& x, const V4& va, const V4& wa, const V4& vb, const V4& wb) {
-  return (x.d.cwiseProduct(vb - va) + x.crossB.cwiseProduct(wb) - x.crossA.cwiseProduct(wa)).sum();
-}
-
-/// The Jacobian of direction d at arms rA, rB, and its effective mass (computed in double).
-template <class Axis>
-float prepareAxis(const SolverBody* a, const SolverBody* b, const Vec3& rA, const Vec3& rB, const Vec3& d, Axis& x) {
+/// The Jacobian of direction d at arms rA, rB into lane l of an axis batch, and its effective mass
+/// (computed in double).
+template <class AxisBatch>
+float prepareAxis(const SolverBody* a, const SolverBody* b, const Vec3& rA, const Vec3& rB, const Vec3& d, AxisBatch& x,
+                  int l) {
   const Vec3 crossA = rA.cross(d), crossB = rB.cross(d);
   const Vec3 turnA = a ? Vec3(a->invInertia * crossA) : Vec3::Zero();
   const Vec3 turnB = b ? Vec3(b->invInertia * crossB) : Vec3::Zero();
   const double k = (a ? a->invMass : 0.0) + (b ? b->invMass : 0.0) + crossA.dot(turnA) + crossB.dot(turnB);
-  x.d = narrow(d);
-  x.crossA = narrow(crossA);
-  x.crossB = narrow(crossB);
-  x.turnA = narrow(turnA);
-  x.turnB = narrow(turnB);
+  const auto put = [l](const Vec3& v, auto& lx, auto& ly, auto& lz) {
+    lx[l] = static_cast<float>(v.x()), ly[l] = static_cast<float>(v.y()), lz[l] = static_cast<float>(v.z());
+  };
+  put(d, x.dx, x.dy, x.dz);
+  put(crossA, x.ax, x.ay, x.az);
+  put(crossB, x.bx, x.by, x.bz);
+  put(turnA, x.tax, x.tay, x.taz);
+  put(turnB, x.tbx, x.tby, x.tbz);
   return k > 0.0 ? static_cast<float>(1.0 / k) : 0.0f;
+}
+
+/// v . d for lane l of an axis batch's direction d (in scalars: a vector built lane by lane goes
+/// through memory).
+template <class AxisBatch>
+float dotDirection(const V4& v, const AxisBatch& x, int l) {
+  return v.x() * x.dx[l] + v.y() * x.dy[l] + v.z() * x.dz[l];
 }
 
 using F4 = Eigen::Array4f;
@@ -99,6 +105,8 @@ void ContactSolver::order(std::span<const SolverBody> bodies) {
   std::array<std::size_t, 3> count{};
   for (const auto& p : ab_) ++count[partOf(p)];
   parts_ = {0, count[0], count[0] + count[1], np};
+  // (a part's batches hold its rows and at most three padding lanes per colour or uncoloured row)
+  for (std::size_t part = 0; part < 3; ++part) posBase_[part + 1] = posBase_[part] + 4 * count[part] + 3 * 64;
   std::array<std::size_t, 3> next{parts_[0], parts_[1], parts_[2]};
   order_.resize(np);
   for (std::size_t i = 0; i < np; ++i) order_[next[partOf(ab_[i])]++] = static_cast<std::uint32_t>(i);
@@ -123,144 +131,51 @@ void ContactSolver::spread(std::size_t part) {
   for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) order_[parts_[part] + start[rank_[from[k]]]++] = from[k];
 }
 
-void ContactSolver::velocitySweep(std::span<const std::uint32_t> rows) {
-  // (each row's two bodies are loaded once, updated in registers and stored once: a row's a and b differ)
-  V4* const v = v_.data();
-  V4* const w = w_.data();
-  for (const std::uint32_t k : rows) {
-    Row& r = rows_[k];
-    V4 va = v[r.a], wa = w[r.a], vb = v[r.b], wb = w[r.b];
-    // friction: both directions, the sum clamped to the cone
-    const float old1 = r.lambdaT1, old2 = r.lambdaT2;
-    float l1 = old1 - r.massT1 * relative(r.t1, va, wa, vb, wb);
-    float l2 = old2 - r.massT2 * relative(r.t2, va, wa, vb, wb);
-    const float limit = r.friction * r.lambdaN;
-    const float mag2 = l1 * l1 + l2 * l2;
-    if (mag2 > limit * limit) {
-      const float s = mag2 > 0.0f ? limit / std::sqrt(mag2) : 0.0f;
-      l1 *= s;
-      l2 *= s;
-    }
-    r.lambdaT1 = l1;
-    r.lambdaT2 = l2;
-    const float d1 = l1 - old1, d2 = l2 - old2;
-    const V4 p = d1 * r.t1.d + d2 * r.t2.d;
-    va -= r.invMassA * p;
-    vb += r.invMassB * p;
-    wa -= d1 * r.t1.turnA + d2 * r.t2.turnA;
-    wb += d1 * r.t1.turnB + d2 * r.t2.turnB;
-    // normal
-    const float oldN = r.lambdaN;
-    r.lambdaN = std::max(oldN + r.massN * (r.targetN - relative(r.n, va, wa, vb, wb)), 0.0f);
-    const float dn = r.lambdaN - oldN;
-    va -= (r.invMassA * dn) * r.n.d;
-    vb += (r.invMassB * dn) * r.n.d;
-    wa -= dn * r.n.turnA;
-    wb += dn * r.n.turnB;
-    v[r.a] = va;
-    w[r.a] = wa;
-    v[r.b] = vb;
-    w[r.b] = wb;
-  }
-}
-
-bool ContactSolver::positionSweep(std::span<const std::uint32_t> rows) {
-  bool moved = false;  // whether a point's pseudo velocity changed by more than the tolerance
-  const auto tolerance = static_cast<float>(settings_.positionTolerance);
-  V4* const v = pv_.data();
-  V4* const w = pw_.data();
-  for (const std::uint32_t k : rows) {
-    Row& r = rows_[k];
-    if (r.biasP <= 0.0f && r.lambdaP <= 0.0f) continue;
-    const float old = r.lambdaP;
-    r.lambdaP = std::max(old + r.massN * (r.biasP - relative(r.n, v[r.a], w[r.a], v[r.b], w[r.b])), 0.0f);
-    const float change = r.lambdaP - old;
-    // (the change of the point's pseudo velocity is change / mass)
-    moved = moved || std::abs(change) > tolerance * r.massN;
-    v[r.a] -= (r.invMassA * change) * r.n.d;
-    w[r.a] -= change * r.n.turnA;
-    v[r.b] += (r.invMassB * change) * r.n.d;
-    w[r.b] += change * r.n.turnB;
-  }
-  return moved;
-}
-
-void ContactSolver::pack(std::size_t part) {
+void ContactSolver::colour(std::size_t part) {
   PartBatches& pb = batches_[part];
   const auto begin = static_cast<std::uint32_t>(parts_[part]);
   const auto count = static_cast<std::uint32_t>(parts_[part + 1] - parts_[part]);
   const std::uint32_t fixed = fixedSlot_[part];
   pb.used.assign(slots_, 0);
   pb.colour.resize(count);
-  pb.rest.clear();
-  pb.batches.clear();
-  // greedy colouring in row order: the first colour neither body has taken (the fixed side takes none)
+  // each row's slots (the fixed side: the part's own entry), then a greedy colouring in row order: the
+  // first colour neither body has taken (the fixed side takes none)
   std::array<std::uint32_t, 64> perColour{};
+  std::uint32_t rest = 0;
   for (std::uint32_t i = 0; i < count; ++i) {
-    const Row& r = rows_[begin + i];
-    const std::uint64_t taken = (r.a == fixed ? 0 : pb.used[r.a]) | (r.b == fixed ? 0 : pb.used[r.b]);
+    const auto [ia, ib] = ab_[order_[begin + i]];
+    const std::uint32_t a = ia == kFixed ? fixed : slot_[ia], b = ib == kFixed ? fixed : slot_[ib];
+    rowSlots_[begin + i] = {a, b};
+    const std::uint64_t taken = (a == fixed ? 0 : pb.used[a]) | (b == fixed ? 0 : pb.used[b]);
     if (taken == ~std::uint64_t{0}) {
       pb.colour[i] = 64;
-      pb.rest.push_back(begin + i);
+      ++rest;
       continue;
     }
     const auto c = static_cast<std::uint8_t>(std::countr_one(taken));
     pb.colour[i] = c;
     ++perColour[c];
-    if (r.a != fixed) pb.used[r.a] |= std::uint64_t{1} << c;
-    if (r.b != fixed) pb.used[r.b] |= std::uint64_t{1} << c;
+    if (a != fixed) pb.used[a] |= std::uint64_t{1} << c;
+    if (b != fixed) pb.used[b] |= std::uint64_t{1} << c;
   }
-  // rows by colour (in row order within a colour), four to a batch, a colour's last batch padded
+  // rows by colour (in row order within a colour), four to a batch, a colour's last batch padded; then
+  // the uncoloured rows in row order, one to a batch
   pb.start[0] = 0;
   for (std::size_t c = 0; c < 64; ++c) pb.start[c + 1] = pb.start[c] + (perColour[c] + 3) / 4 * 4;
-  pb.sorted.assign(pb.start[64], kNoRow);
+  pb.sorted.assign(pb.start[64] + 4 * rest, kNoRow);
   std::array<std::uint32_t, 64> next{};
   std::copy(pb.start.begin(), pb.start.begin() + 64, next.begin());
-  for (std::uint32_t i = 0; i < count; ++i)
-    if (pb.colour[i] < 64) pb.sorted[next[pb.colour[i]]++] = begin + i;
-  pb.batches.resize(pb.start[64] / 4);
-  const auto put = [](const Axis& x, AxisBatch& b, int l) {
-    b.dx[l] = x.d.x(), b.dy[l] = x.d.y(), b.dz[l] = x.d.z();
-    b.ax[l] = x.crossA.x(), b.ay[l] = x.crossA.y(), b.az[l] = x.crossA.z();
-    b.bx[l] = x.crossB.x(), b.by[l] = x.crossB.y(), b.bz[l] = x.crossB.z();
-    b.tax[l] = x.turnA.x(), b.tay[l] = x.turnA.y(), b.taz[l] = x.turnA.z();
-    b.tbx[l] = x.turnB.x(), b.tby[l] = x.turnB.y(), b.tbz[l] = x.turnB.z();
-  };
-  for (std::size_t j = 0; j < pb.batches.size(); ++j) {
-    Batch& b = pb.batches[j];
-    for (int l = 0; l < 4; ++l) {
-      const auto lane = static_cast<std::size_t>(l);
-      const std::uint32_t k = pb.sorted[4 * j + lane];
-      b.row[lane] = k;
-      if (k == kNoRow) {  // padding: all zero on the fixed side
-        static const Row zero{};
-        b.a[lane] = b.b[lane] = fixed;
-        put(zero.n, b.n, l), put(zero.t1, b.t1, l), put(zero.t2, b.t2, l);
-        b.massN[l] = b.massT1[l] = b.massT2[l] = b.invMassA[l] = b.invMassB[l] = 0.0f;
-        b.targetN[l] = b.friction[l] = b.biasP[l] = 0.0f;
-        b.lambdaN[l] = b.lambdaT1[l] = b.lambdaT2[l] = b.lambdaP[l] = 0.0f;
-        continue;
-      }
-      const Row& r = rows_[k];
-      b.a[lane] = r.a;
-      b.b[lane] = r.b;
-      put(r.n, b.n, l), put(r.t1, b.t1, l), put(r.t2, b.t2, l);
-      b.massN[l] = r.massN, b.massT1[l] = r.massT1, b.massT2[l] = r.massT2;
-      b.invMassA[l] = r.invMassA, b.invMassB[l] = r.invMassB;
-      b.targetN[l] = r.targetN, b.friction[l] = r.friction, b.biasP[l] = r.biasP;
-      b.lambdaN[l] = r.lambdaN, b.lambdaT1[l] = r.lambdaT1, b.lambdaT2[l] = r.lambdaT2, b.lambdaP[l] = r.lambdaP;
+  std::uint32_t restNext = pb.start[64];
+  for (std::uint32_t i = 0; i < count; ++i) {
+    if (pb.colour[i] < 64) {
+      pb.sorted[next[pb.colour[i]]++] = begin + i;
+    } else {
+      pb.sorted[restNext] = begin + i;
+      restNext += 4;
     }
   }
-}
-
-void ContactSolver::unpack(std::size_t part) {
-  for (const Batch& b : batches_[part].batches)
-    for (int l = 0; l < 4; ++l) {
-      const std::uint32_t k = b.row[static_cast<std::size_t>(l)];
-      if (k == kNoRow) continue;
-      Row& r = rows_[k];
-      r.lambdaN = b.lambdaN[l], r.lambdaT1 = b.lambdaT1[l], r.lambdaT2 = b.lambdaT2[l], r.lambdaP = b.lambdaP[l];
-    }
+  pb.restBegin = pb.start[64] / 4;
+  pb.batches.resize(pb.sorted.size() / 4);
 }
 
 namespace {
@@ -314,7 +229,7 @@ struct Motion {
 
 namespace {
 
-/// The velocity step of a batch whose bodies' velocities are in m (the arithmetic of velocitySweep).
+/// The velocity step of a batch whose bodies' velocities are in m.
 template <class Batch>
 inline void velocityBatch(Batch& b, Motion& m) {
   const F4 old1 = b.lambdaT1, old2 = b.lambdaT2;
@@ -337,7 +252,8 @@ inline void velocityBatch(Batch& b, Motion& m) {
 
 }  // namespace
 
-void ContactSolver::velocityPart(std::size_t part) {
+template <class After>
+void ContactSolver::velocityPart(std::size_t part, const After& after) {
   // four rows at once; and two batches of one colour at once, since they share no body (other than the
   // fixed side, which stays zero): each one's work then overlaps the other's waiting for its results
   V4* const v = v_.data();
@@ -356,6 +272,8 @@ void ContactSolver::velocityPart(std::size_t part) {
       velocityBatch(b1, m1);
       m0.store(v, w, b0.a, b0.b);
       m1.store(v, w, b1.a, b1.b);
+      after(j);
+      after(j + 1);
     }
     if (j < end) {
       Batch& b = pb.batches[j];
@@ -363,9 +281,17 @@ void ContactSolver::velocityPart(std::size_t part) {
       m.load(v, w, b.a, b.b);
       velocityBatch(b, m);
       m.store(v, w, b.a, b.b);
+      after(j);
     }
   }
-  velocitySweep(pb.rest);
+  for (std::size_t j = pb.restBegin; j < pb.batches.size(); ++j) {
+    Batch& b = pb.batches[j];
+    Motion m;
+    m.load(v, w, b.a, b.b);
+    velocityBatch(b, m);
+    m.store(v, w, b.a, b.b);
+    after(j);
+  }
 }
 
 bool ContactSolver::positionPart(std::size_t part) {
@@ -386,7 +312,7 @@ bool ContactSolver::positionPart(std::size_t part) {
     m.push(b.n, change, b.invMassA, b.invMassB);
     m.store(v, w, b.a, b.b);
   }
-  return positionSweep(batches_[part].rest) || moved;
+  return moved;
 }
 
 const ContactSolver::Cached* ContactSolver::cached(std::uint64_t key) const {
@@ -402,16 +328,21 @@ void ContactSolver::remember() {
   // a key can repeat when two points share a particle pair (raw normals never, planes never): the first
   // in solving order is found
   std::size_t size = 16;
-  while (size < 2 * rows_.size()) size *= 2;
+  while (size < 2 * (parts_[3] + 1)) size *= 2;
   table_.assign(size, kEmpty);
   tableBits_ = std::countr_zero(size);
-  for (std::size_t k = 0; k < rows_.size(); ++k) {
-    for (std::uint64_t i = hashSlot(keys_[k], tableBits_);; i = (i + 1) & (table_.size() - 1)) {
-      if (table_[i] == kEmpty) {
-        table_[i] = static_cast<std::uint32_t>(k);
-        break;
+  for (std::size_t part = 0; part < 3; ++part) {
+    const std::vector<std::uint32_t>& sorted = batches_[part].sorted;
+    for (std::size_t j = 0; j < sorted.size(); ++j) {
+      if (sorted[j] == kNoRow) continue;
+      const std::size_t k = posBase_[part] + j;
+      for (std::uint64_t i = hashSlot(keys_[k], tableBits_);; i = (i + 1) & (table_.size() - 1)) {
+        if (table_[i] == kEmpty) {
+          table_[i] = static_cast<std::uint32_t>(k);
+          break;
+        }
+        if (keys_[table_[i]] == keys_[k]) break;
       }
-      if (keys_[table_[i]] == keys_[k]) break;
     }
   }
 }
@@ -434,10 +365,12 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       w_.resize(slots_);
       pv_.resize(slots_);
       pw_.resize(slots_);
-      rows_.resize(np);
-      keys_.resize(np);
+      dv_.resize(slots_);
+      dw_.resize(slots_);
+      rowSlots_.resize(np);
+      keys_.resize(posBase_[3]);
       impulses_.resize(np);
-      nextCache_.resize(np);
+      nextCache_.resize(posBase_[3]);
     }
     barrier_.wait();
     // each half's velocities in their slots and its points spread, by its own thread; each part's fixed
@@ -449,6 +382,8 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
         w_[s] = narrow(bodies[i].w);
         pv_[s] = narrow(bodies[i].pv);
         pw_[s] = narrow(bodies[i].pw);
+        dv_[s] = bodies[i].v;
+        dw_[s] = bodies[i].w;
       }
       const std::uint32_t s = fixedSlot_[side];
       v_[s] = w_[s] = pv_[s] = pw_[s] = V4::Zero();
@@ -468,52 +403,92 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     barrier_.wait();
   };
 
-  // prepare rows: Jacobians, effective masses, restitution targets
-  const auto prepare = [&](std::size_t part) {
-    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) {
-      const ContactPointInput& in = points[order_[k]];
-      Row& r = rows_[k];
-      r.a = in.a == kFixed ? fixedSlot_[part] : slot_[in.a];
-      r.b = in.b == kFixed ? fixedSlot_[part] : slot_[in.b];
-      const SolverBody* a = in.a == kFixed ? nullptr : &bodies[in.a];
-      const SolverBody* b = in.b == kFixed ? nullptr : &bodies[in.b];
-      r.invMassA = a ? static_cast<float>(a->invMass) : 0.0f;
-      r.invMassB = b ? static_cast<float>(b->invMass) : 0.0f;
-      Vec3 t1, t2;
-      tangents(in.normal, t1, t2);
-      r.massN = prepareAxis(a, b, in.rA, in.rB, in.normal, r.n);
-      r.massT1 = prepareAxis(a, b, in.rA, in.rB, t1, r.t1);
-      r.massT2 = prepareAxis(a, b, in.rA, in.rB, t2, r.t2);
-      keys_[k] = in.key;
-      r.friction = static_cast<float>(in.friction);
-      // relative velocity of B with respect to A along n: negative when approaching
-      const double vn = relative(r.n, v_[r.a], w_[r.a], v_[r.b], w_[r.b]);
-      // bounce above the threshold; otherwise a speculative contact may close its gap this step, no more
-      const double target = vn < -settings_.restitutionThreshold && in.restitution > 0.0 ? -in.restitution * vn
-                            : in.depth < 0.0                                           ? in.depth / dt
-                                                                                       : 0.0;
-      r.targetN = static_cast<float>(target);
-      r.biasP = static_cast<float>(
-          std::min(settings_.baumgarte * std::max(in.depth - in.slop, 0.0) / dt, settings_.maxCorrectionSpeed));
-      r.lambdaN = r.lambdaT1 = r.lambdaT2 = r.lambdaP = 0.0f;
-    }
-  };
-  // warm start from the last step's impulses, matched by key
-  const auto warmStart = [&](std::size_t part) {
+  // warm start of a batch from the last step's impulses, matched by key (its lanes share no body)
+  const auto warmStart = [&](std::size_t part, std::size_t j) {
+    Batch& b = batches_[part].batches[j];
+    const std::uint64_t* keys = keys_.data() + posBase_[part] + 4 * j;
     std::size_t started = 0;
-    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) {
-      Row& r = rows_[k];
-      const Cached* c = cached(keys_[k]);
+    for (int l = 0; l < 4; ++l) {
+      const Cached* c = b.row[static_cast<std::size_t>(l)] == kNoRow ? nullptr : cached(keys[l]);
       if (!c) continue;
-      r.lambdaN = c->lambdaN;
-      r.lambdaT1 = c->lambdaT.dot(r.t1.d);
-      r.lambdaT2 = c->lambdaT.dot(r.t2.d);
-      const V4 p = r.lambdaN * r.n.d + r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d;
-      v_[r.a] -= r.invMassA * p;
-      w_[r.a] -= r.lambdaN * r.n.turnA + r.lambdaT1 * r.t1.turnA + r.lambdaT2 * r.t2.turnA;
-      v_[r.b] += r.invMassB * p;
-      w_[r.b] += r.lambdaN * r.n.turnB + r.lambdaT1 * r.t1.turnB + r.lambdaT2 * r.t2.turnB;
+      b.lambdaN[l] = c->lambdaN;
+      b.lambdaT1[l] = dotDirection(c->lambdaT, b.t1, l);
+      b.lambdaT2[l] = dotDirection(c->lambdaT, b.t2, l);
       ++started;
+    }
+    if (started == 0) return started;
+    Motion m;
+    m.load(v_.data(), w_.data(), b.a, b.b);
+    m.push(b.n, b.lambdaN, b.invMassA, b.invMassB);
+    m.push(b.t1, b.lambdaT1, b.invMassA, b.invMassB);
+    m.push(b.t2, b.lambdaT2, b.invMassA, b.invMassB);
+    m.store(v_.data(), w_.data(), b.a, b.b);
+    return started;
+  };
+  // prepare rows straight into their batches' lanes: Jacobians, effective masses, restitution targets
+  // (from the bodies' double velocities, which the warm start leaves alone); then, if `warm`, warm start
+  // each batch while it is in the cache
+  const auto prepare = [&](std::size_t part, bool warm) {
+    PartBatches& pb = batches_[part];
+    const std::uint32_t fixed = fixedSlot_[part];
+    std::uint64_t* const keys = keys_.data() + posBase_[part];
+    std::size_t started = 0;
+    constexpr std::size_t kAhead = 2;  // batches whose input points are fetched ahead of their use
+    const auto fetch = [&](std::size_t j) {
+      for (std::size_t lane = 0; lane < 4; ++lane) {
+        const std::uint32_t k = pb.sorted[4 * j + lane];
+        if (k == kNoRow) continue;
+        const char* at = reinterpret_cast<const char*>(&points[order_[k]]);
+        __builtin_prefetch(at);
+        __builtin_prefetch(at + sizeof(ContactPointInput) - 1);
+      }
+    };
+    for (std::size_t j = 0; j < std::min(kAhead, pb.batches.size()); ++j) fetch(j);
+    for (std::size_t j = 0; j < pb.batches.size(); ++j) {
+      if (j + kAhead < pb.batches.size()) fetch(j + kAhead);
+      Batch& b = pb.batches[j];
+      b.lambdaN = b.lambdaT1 = b.lambdaT2 = b.lambdaP = F4::Zero();
+      for (int l = 0; l < 4; ++l) {
+        const auto lane = static_cast<std::size_t>(l);
+        const std::uint32_t k = pb.sorted[4 * j + lane];
+        b.row[lane] = k;
+        if (k == kNoRow) {  // padding: all zero on the fixed side
+          b.a[lane] = b.b[lane] = fixed;
+          for (AxisBatch* x : {&b.n, &b.t1, &b.t2})
+            for (F4* f : {&x->dx, &x->dy, &x->dz, &x->ax, &x->ay, &x->az, &x->bx, &x->by, &x->bz, &x->tax, &x->tay, &x->taz,
+                          &x->tbx, &x->tby, &x->tbz})
+              (*f)[l] = 0.0f;
+          b.massN[l] = b.massT1[l] = b.massT2[l] = b.invMassA[l] = b.invMassB[l] = 0.0f;
+          b.targetN[l] = b.friction[l] = b.biasP[l] = 0.0f;
+          continue;
+        }
+        const ContactPointInput& in = points[order_[k]];
+        b.a[lane] = rowSlots_[k].first;
+        b.b[lane] = rowSlots_[k].second;
+        const SolverBody* sa = in.a == kFixed ? nullptr : &bodies[in.a];
+        const SolverBody* sb = in.b == kFixed ? nullptr : &bodies[in.b];
+        b.invMassA[l] = sa ? static_cast<float>(sa->invMass) : 0.0f;
+        b.invMassB[l] = sb ? static_cast<float>(sb->invMass) : 0.0f;
+        Vec3 t1, t2;
+        tangents(in.normal, t1, t2);
+        b.massN[l] = prepareAxis(sa, sb, in.rA, in.rB, in.normal, b.n, l);
+        b.massT1[l] = prepareAxis(sa, sb, in.rA, in.rB, t1, b.t1, l);
+        b.massT2[l] = prepareAxis(sa, sb, in.rA, in.rB, t2, b.t2, l);
+        keys[4 * j + lane] = in.key;
+        b.friction[l] = static_cast<float>(in.friction);
+        // relative velocity of B with respect to A along n: negative when approaching
+        double vn = 0.0;
+        if (sb) vn += in.normal.dot(sb->v) + in.rB.cross(in.normal).dot(sb->w);
+        if (sa) vn -= in.normal.dot(sa->v) + in.rA.cross(in.normal).dot(sa->w);
+        // bounce above the threshold; otherwise a speculative contact may close its gap this step, no more
+        const double target = vn < -settings_.restitutionThreshold && in.restitution > 0.0 ? -in.restitution * vn
+                              : in.depth < 0.0                                           ? in.depth / dt
+                                                                                         : 0.0;
+        b.targetN[l] = static_cast<float>(target);
+        b.biasP[l] = static_cast<float>(
+            std::min(settings_.baumgarte * std::max(in.depth - in.slop, 0.0) / dt, settings_.maxCorrectionSpeed));
+      }
+      if (warm) started += warmStart(part, j);
     }
     return started;
   };
@@ -521,29 +496,38 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   // the velocities back in double, from the impulses: each point's impulse P, +P on B and -P on A, applied
   // to the bodies' double velocities at the point's double arms. The iterations' own single-precision
   // velocities agree with these to rounding, but only these conserve momentum to double precision (and a
-  // body without contacts keeps its velocity bit for bit)
+  // body without contacts keeps its velocity bit for bit). Run on each batch right after its last
+  // velocity iteration.
   std::array<double, 3> normalSum{};
-  const auto finish = [&](std::size_t part) {
-    double sum = 0.0;
-    for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) {
-      const Row& r = rows_[k];
+  const auto finish = [&](std::size_t part, std::size_t j) {
+    const Batch& b = batches_[part].batches[j];
+    double sum = 0.0;  // (normal impulses; summed on the thread's own stack)
+    Cached* next = nextCache_.data() + posBase_[part] + 4 * j;
+    for (int l = 0; l < 4; ++l) {
+      const std::uint32_t k = b.row[static_cast<std::size_t>(l)];
+      if (k == kNoRow) continue;
       const ContactPointInput& in = points[order_[k]];
-      nextCache_[k] = Cached{r.lambdaN, r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d};
-      const Vec3 impulse = wide(r.lambdaN * r.n.d + r.lambdaT1 * r.t1.d + r.lambdaT2 * r.t2.d);
+      const float l1 = b.lambdaT1[l], l2 = b.lambdaT2[l], ln = b.lambdaN[l];
+      const float tx = l1 * b.t1.dx[l] + l2 * b.t2.dx[l], ty = l1 * b.t1.dy[l] + l2 * b.t2.dy[l],
+                  tz = l1 * b.t1.dz[l] + l2 * b.t2.dz[l];
+      next[l] = Cached{ln, V4(tx, ty, tz, 0.0f)};
+      const Vec3 impulse(ln * b.n.dx[l] + tx, ln * b.n.dy[l] + ty, ln * b.n.dz[l] + tz);
       impulses_[order_[k]] = impulse;
-      sum += static_cast<double>(r.lambdaN);
+      sum += static_cast<double>(b.lambdaN[l]);
+      // (into the slots' double velocities: each half's slots lie apart from the other's, so the two
+      // threads never write one cache line)
       if (in.a != kFixed) {
-        SolverBody& a = bodies[in.a];
-        a.v -= a.invMass * impulse;
-        a.w -= a.invInertia * in.rA.cross(impulse);
+        const SolverBody& a = bodies[in.a];
+        dv_[b.a[static_cast<std::size_t>(l)]] -= a.invMass * impulse;
+        dw_[b.a[static_cast<std::size_t>(l)]] -= a.invInertia * in.rA.cross(impulse);
       }
       if (in.b != kFixed) {
-        SolverBody& b = bodies[in.b];
-        b.v += b.invMass * impulse;
-        b.w += b.invInertia * in.rB.cross(impulse);
+        const SolverBody& sb = bodies[in.b];
+        dv_[b.b[static_cast<std::size_t>(l)]] += sb.invMass * impulse;
+        dw_[b.b[static_cast<std::size_t>(l)]] += sb.invInertia * in.rB.cross(impulse);
       }
     }
-    normalSum[part] = sum;
+    return sum;
   };
 
   // everything in the same order of phases, on one thread or two: prepare (after which the approach
@@ -554,23 +538,45 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   std::array<std::array<std::uint8_t, 3>, 2> moved{};
   const auto iterate = [&](int worker, std::size_t begin, std::size_t end) {
     setUp(worker);
-    for (std::size_t part = begin; part < end; ++part) prepare(part);
-    if (worker == 0) prepare(2);
+    // the halves prepared and warm started at once (they share no body); the joining points prepared
+    // meanwhile but warm started after both halves, so every body's velocity takes the warm-starting
+    // impulses in the same order however many threads there are
+    for (std::size_t part = begin; part < end; ++part) colour(part), started[part] = prepare(part, settings_.warmStart);
+    if (worker == 0) colour(2), prepare(2, false);
     barrier_.wait();
-    if (settings_.warmStart) {
-      for (std::size_t part = begin; part < end; ++part) started[part] = warmStart(part);
-      barrier_.wait();
-      if (worker == 0) started[2] = warmStart(2);
-      barrier_.wait();
+    if (worker == 0 && settings_.warmStart) {
+      std::size_t count = 0;
+      for (std::size_t j = 0; j < batches_[2].batches.size(); ++j) count += warmStart(2, j);
+      started[2] = count;
     }
-    for (std::size_t part = begin; part < end; ++part) pack(part);
-    if (worker == 0) pack(2);
+    barrier_.wait();
+    // the velocity iterations; the last one hands each batch's impulses to the bodies as it goes (the
+    // halves at once, then the joining points: every body sums its impulses in the same order)
+    const auto none = [](std::size_t) {};
+    std::array<double, 3> sums{};  // (each thread's own, written to normalSum once)
     for (int it = 0; it < settings_.iterations; ++it) {
-      for (std::size_t part = begin; part < end; ++part) velocityPart(part);
+      const bool last = it + 1 == settings_.iterations;
+      for (std::size_t part = begin; part < end; ++part) {
+        if (last) velocityPart(part, [&](std::size_t j) { sums[part] += finish(part, j); });
+        else velocityPart(part, none);
+      }
       barrier_.wait();
-      if (worker == 0) velocityPart(2);
+      if (worker == 0) {
+        if (last) velocityPart(2, [&](std::size_t j) { sums[2] += finish(2, j); });
+        else velocityPart(2, none);
+      }
       barrier_.wait();
     }
+    if (settings_.iterations <= 0) {
+      for (std::size_t part = begin; part < end; ++part)
+        for (std::size_t j = 0; j < batches_[part].batches.size(); ++j) sums[part] += finish(part, j);
+      barrier_.wait();
+      if (worker == 0)
+        for (std::size_t j = 0; j < batches_[2].batches.size(); ++j) sums[2] += finish(2, j);
+      barrier_.wait();
+    }
+    for (std::size_t part = begin; part < end; ++part) normalSum[part] = sums[part];
+    if (worker == 0) normalSum[2] = sums[2];
     // (until no point's pseudo velocity changes by more than the tolerance: the same decision on every
     // thread, from the parts' own results)
     for (int it = 0; it < settings_.positionIterations; ++it) {
@@ -581,18 +587,15 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       barrier_.wait();
       if (!m[0] && !m[1] && !m[2]) break;
     }
-    for (std::size_t part = begin; part < end; ++part) unpack(part);
-    if (worker == 0) unpack(2);
-    // impulses to the bodies: the halves at once (they share no body), then the joining points, so every
-    // body sums its impulses in row order however many threads there are
-    for (std::size_t part = begin; part < end; ++part) finish(part);
-    for (std::size_t i = nb * begin / 2; i < nb * end / 2; ++i) {
-      bodies[i].pv = wide(pv_[slot_[i]]);
-      bodies[i].pw = wide(pw_[slot_[i]]);
+    // the velocities and pseudo velocities back to the bodies, each half's by its thread
+    for (std::size_t k = begin == 0 ? 0 : half_; k < (end == 1 ? half_ : nb); ++k) {
+      const std::uint32_t i = byX_[k].second, s = slot_[i];
+      bodies[i].v = dv_[s];
+      bodies[i].w = dw_[s];
+      bodies[i].pv = wide(pv_[s]);
+      bodies[i].pw = wide(pw_[s]);
     }
-    barrier_.wait();
-    // (this step's keys for the next step's warm start: found while the joining points finish)
-    if (worker == 0) finish(2);
+    // (this step's keys for the next step's warm start)
     if (worker == workers - 1) remember();
   };
   if (workers == 2) {

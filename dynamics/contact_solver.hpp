@@ -83,57 +83,48 @@ class ContactSolver {
   [[nodiscard]] std::span<const Vec3> impulses() const { return impulses_; }
 
  private:
-  /// One constraint direction of a point: the unit direction d and, per side, the angular part of the
-  /// Jacobian (r x d) and the angular velocity change per unit impulse I^-1 (r x d).
-  // The iterations run in single precision on 4-wide vectors (xyz and a w that stays zero), which the
-  // compiler maps onto SIMD registers: a row costs a third of the instructions of scalar double
-  // arithmetic. The velocities go back in double, recomputed from the points' impulses.
+  // The iterations run in single precision, four rows at once in SIMD lanes; the velocities go back in
+  // double, recomputed from the points' impulses.
   using V4 = Eigen::Vector4f;
-  /// One constraint direction of a point: the unit direction d and, per side, the angular part of the
-  /// Jacobian (r x d) and the angular velocity change per unit impulse I^-1 (r x d).
-  struct Axis {
-    V4 d, crossA, crossB, turnA, turnB;
-  };
-  struct alignas(16) Row {
-    Axis n, t1, t2;
-    float massN, massT1, massT2;   // 1 / (J M^-1 J^T) per direction
-    float invMassA, invMassB;
-    float targetN;                 // velocity target along n (restitution, speculative gap)
-    float friction;
-    float biasP;                   // pseudo-velocity target
-    float lambdaN, lambdaT1, lambdaT2, lambdaP;
-    std::uint32_t a, b;            // indices into the velocity arrays (each part's fixed side: its own)
+  using F4 = Eigen::Array4f;
+  /// One constraint direction of four rows, lane by lane: the unit direction d and, per side, the angular
+  /// part of the Jacobian (r x d) and the angular velocity change per unit impulse I^-1 (r x d).
+  struct AxisBatch {
+    F4 dx, dy, dz, ax, ay, az, bx, by, bz, tax, tay, taz, tbx, tby, tbz;  // d, crossA, crossB, turnA, turnB
   };
   /// Four rows solved at once, one in each lane, structure of arrays; the four share no body (other than a
   /// part's fixed side, which never moves). Lanes beyond a colour's rows are padding with zero
   /// coefficients on the fixed side.
-  using F4 = Eigen::Array4f;
-  struct AxisBatch {
-    F4 dx, dy, dz, ax, ay, az, bx, by, bz, tax, tay, taz, tbx, tby, tbz;  // d, crossA, crossB, turnA, turnB
-  };
   struct Batch {
     AxisBatch n, t1, t2;
-    F4 massN, massT1, massT2, invMassA, invMassB, targetN, friction, biasP;
+    F4 massN, massT1, massT2;   // 1 / (J M^-1 J^T) per direction
+    F4 invMassA, invMassB;
+    F4 targetN;                 // velocity target along n (restitution, speculative gap)
+    F4 friction;
+    F4 biasP;                   // pseudo-velocity target
     F4 lambdaN, lambdaT1, lambdaT2, lambdaP;
     std::array<std::uint32_t, 4> a, b, row;  // slots, and the rows they came from (kNoRow: padding)
   };
   static constexpr std::uint32_t kNoRow = 0xffffffffu;
   /// A part's rows coloured so that no two rows of a colour share a body, four of a colour to a batch;
-  /// the rows no colour could take (a body in more than 64 rows) are solved one by one after them.
+  /// the rows no colour could take (a body in more than 64 rows) follow, one to a batch, solved one
+  /// after another.
   struct PartBatches {
     std::vector<Batch> batches;
-    std::vector<std::uint32_t> rest;         // rows solved one by one
+    std::size_t restBegin = 0;               // the first one-row batch
     std::vector<std::uint64_t> used;         // per slot: the colours its rows took
-    std::vector<std::uint8_t> colour;        // per row of the part
+    std::vector<std::uint8_t> colour;        // per row of the part (64: none)
     std::array<std::uint32_t, 65> start{};   // (counting sort by colour)
-    std::vector<std::uint32_t> sorted;
+    std::vector<std::uint32_t> sorted;       // rows in batch order, four to a batch (kNoRow: padding)
   };
-  void pack(std::size_t part);
-  void unpack(std::size_t part);
-  void velocityPart(std::size_t part);
+  /// Colours a part's rows and lays out its batches (rows not yet prepared).
+  void colour(std::size_t part);
+  /// One velocity iteration over a part's batches; after(j) follows batch j.
+  template <class After>
+  void velocityPart(std::size_t part, const After& after);
   bool positionPart(std::size_t part);
 
-  /// The last step's impulses, by row, and an open-addressing hash table from warm-starting key to row.
+  /// The last step's impulses, by batch lane, and an open-addressing hash table from warm-starting key to lane.
   struct Cached {
     float lambdaN;
     V4 lambdaT;  // world tangential impulse
@@ -146,19 +137,18 @@ class ContactSolver {
   void order(std::span<const SolverBody> bodies);
   /// Reorders a part's rows (from scratch_ into order_) so that the points of one body pair do not follow each other.
   void spread(std::size_t part);
-  /// One sweep of the velocity (or pseudo-velocity) iteration over the given rows, one by one.
-  void velocitySweep(std::span<const std::uint32_t> rows);
-  /// Returns whether a point's pseudo velocity changed by more than the tolerance.
-  bool positionSweep(std::span<const std::uint32_t> rows);
 
   /// The last step's impulses for a key, or null.
   [[nodiscard]] const Cached* cached(std::uint64_t key) const;
   /// Indexes this step's keys (keys_) for the next step's warm start.
   void remember();
 
-  std::vector<Row> rows_;
   std::array<PartBatches, 3> batches_;
-  std::vector<std::uint64_t> keys_;  // per row: its warm-starting key
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> rowSlots_;  // per row: its bodies' slots
+  /// Per batch lane, each part's batches from posBase_[part]: the warm-starting key (keys_), this step's
+  /// impulses (nextCache_) and the last step's (cache_, cacheKeys_)
+  std::array<std::size_t, 4> posBase_{};
+  std::vector<std::uint64_t> keys_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> ab_;  // per input point: its bodies
   std::vector<std::uint32_t> order_;  // per row: the index of its input point
   std::vector<std::uint32_t> rank_, scratch_;  // (ordering scratch)
@@ -172,11 +162,12 @@ class ContactSolver {
   SpinBarrier barrier_;
   // velocities of the solver bodies and of each part's fixed side (always zero)
   std::vector<V4> v_, w_, pv_, pw_;
+  std::vector<Vec3> dv_, dw_;  // the velocities in double, rebuilt from the impulses
   std::size_t half_ = 0;  // bodies in the left half (the first of byX_)
-  std::vector<std::uint64_t> cacheKeys_;  // by row of the last step
-  std::vector<Cached> cache_;             // by row of the last step
-  std::vector<Cached> nextCache_;         // by row of this step (becomes cache_)
-  std::vector<std::uint32_t> table_;      // rows of the last step; a power of two long, at most half full
+  std::vector<std::uint64_t> cacheKeys_;
+  std::vector<Cached> cache_;
+  std::vector<Cached> nextCache_;
+  std::vector<std::uint32_t> table_;      // lanes of the last step; a power of two long, at most half full
   int tableBits_ = 0;
   std::vector<Vec3> impulses_;
   double totalNormalImpulse_ = 0.0;

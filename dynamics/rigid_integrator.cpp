@@ -37,8 +37,17 @@ void integrateRigidPose(BodyState& s, double dt, const Vec3& pseudoLinear, const
     s.angularVelocity = s.orientation * wBody;  // the body keeps spinning about the same body axis
   }
 
-  // body-frame angular momentum L_b = I_b w_b (moments are 1 / invInertiaLocal)
   const Vec3& invI = s.invInertiaLocal;
+  if (invI.maxCoeff() - invI.minCoeff() <= 1e-12 * invI.maxCoeff()) {
+    // a spherical top (equal moments, to rounding): without torque it turns about its constant angular
+    // velocity, exactly
+    const double angle = s.angularVelocity.norm() * dt;
+    if (angle > 0.0) s.orientation = (Quat(Eigen::AngleAxisd(angle, s.angularVelocity / (angle / dt))) * s.orientation).normalized();
+    updateWorldInertia(s);
+    return;
+  }
+
+  // body-frame angular momentum L_b = I_b w_b (moments are 1 / invInertiaLocal)
   const Vec3 wBody = s.orientation.conjugate() * s.angularVelocity;
   Vec3 lBody(wBody.x() / invI.x(), wBody.y() / invI.y(), wBody.z() / invI.z());
 

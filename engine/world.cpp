@@ -584,13 +584,32 @@ void World::buildContactPoints() {
   pointParticles_.resize(pointFirst_[np]);
   // the points themselves: patches shared among the workers, each point written at its patch's place
   const auto fill = [&](int, std::size_t begin, std::size_t end) {
-    const auto slotOf = [&](ParticleId p) {
+    // a patch's side as its points see it: a rigid body's slot and centre (shared by all its particles),
+    // a deformable body's particles (a slot each, no arm), or the fixed world
+    struct Side {
+      bool perParticle = false, rigid = false;
+      std::uint32_t slot = ContactPointInput::kFixed;
+      Vec3 centre = Vec3::Zero();
+    };
+    const auto sideOf = [&](BodyId b) {
+      Side side;
+      if (!b.valid()) return side;
+      const BodyKind k = kind(b);
+      side.perParticle = k == BodyKind::Deformable;
+      side.rigid = k == BodyKind::Rigid;
+      if (side.rigid) {
+        side.slot = bodySolverIndex_[b.index()];
+        side.centre = bodies_.state[b.index()].position;
+      }
+      return side;
+    };
+    const auto slotOf = [&](const Side& side, ParticleId p) {
+      if (!side.perParticle) return side.slot;
       const std::uint32_t* slot = solverSlot(p);
       return slot ? *slot : ContactPointInput::kFixed;
     };
-    const auto arm = [&](ParticleId p, const Vec3& point) -> Vec3 {
-      const BodyId b = particles_.body[p.index()];
-      return kind(b) == BodyKind::Rigid ? Vec3(point - bodies_.state[b.index()].position) : Vec3::Zero();
+    const auto arm = [&](const Side& side, const Vec3& point) -> Vec3 {
+      return side.rigid ? Vec3(point - side.centre) : Vec3::Zero();
     };
     for (std::size_t j = begin; j < end; ++j) {
       const ContactPatch& patch = ps.patches[j];
@@ -602,13 +621,14 @@ void World::buildContactPoints() {
       const auto [ma, mb] = contactMaterials(first.a, first.b, first.plane);
       const double friction = std::sqrt(ma->friction * mb->friction);
       const double restitution = std::max(ma->restitution, mb->restitution);
+      const Side sideA = sideOf(patch.a), sideB = sideOf(patch.b);
       const auto addPoint = [&](const ParticleContact& c, const Vec3& normal, double depth) {
         ContactPointInput& in = contactPoints_[out];
         pointParticles_[out++] = {c.a, c.b};
-        in.a = slotOf(c.a);
-        in.b = c.b.valid() ? slotOf(c.b) : ContactPointInput::kFixed;
-        in.rA = arm(c.a, c.point);
-        in.rB = c.b.valid() ? arm(c.b, c.point) : Vec3::Zero();
+        in.a = slotOf(sideA, c.a);
+        in.b = c.b.valid() ? slotOf(sideB, c.b) : ContactPointInput::kFixed;
+        in.rA = arm(sideA, c.point);
+        in.rB = arm(sideB, c.point);
         in.normal = normal;
         in.depth = depth;
         const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
