@@ -441,13 +441,29 @@ void World::detectCollisions() {
   stats_.patchesReused = np.reused;
   stats_.bodyPairs = bodyPairs_.size();
   stats_.planePairs = planePairs_.size();
-  stats_.contacts = 0;
   stats_.contactGroups = contacts_.groups.size();
+  // touching contacts and the deepest overlap: each worker's range, then the ranges combined (a count and
+  // a maximum, the same in any order)
+  const std::size_t nc = contacts_.contacts.size();
+  const std::size_t parts = pool_ && pool_->worthSharing(nc, 4096) ? static_cast<std::size_t>(pool_->workers()) : 1;
+  contactTally_.assign(parts, {});
+  const auto tally = [&](int worker, std::size_t begin, std::size_t end) {
+    ContactTally mine;
+    for (std::size_t i = begin; i < end; ++i) {
+      const ParticleContact& c = contacts_.contacts[i];
+      if (!c.touching()) continue;
+      ++mine.touching;
+      mine.deepest = std::max(mine.deepest, c.depth);
+    }
+    contactTally_[static_cast<std::size_t>(worker)] = mine;
+  };
+  if (parts > 1) pool_->run(nc, tally);
+  else tally(0, 0, nc);
+  stats_.contacts = 0;
   stats_.maxPenetration = 0.0;
-  for (const ParticleContact& c : contacts_.contacts) {
-    if (!c.touching()) continue;
-    ++stats_.contacts;
-    stats_.maxPenetration = std::max(stats_.maxPenetration, c.depth);
+  for (const ContactTally& part : contactTally_) {
+    stats_.contacts += part.touching;
+    stats_.maxPenetration = std::max(stats_.maxPenetration, part.deepest);
   }
   contactsStale_ = false;
 }
@@ -455,7 +471,12 @@ void World::detectCollisions() {
 void World::integrateVelocities() {
   // deformable particles get gravity a substep at a time in integratePositions, where their contacts hold
   // them up as position constraints; the contact solver sees them as they are (impacts, not their weight)
-  for (const BodyId id : rigidBodies_) integrateRigidVelocity(bodies_.state[id.index()], settings_.gravity, settings_.dt);
+  const auto gravity = [&](int, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i)
+      integrateRigidVelocity(bodies_.state[rigidBodies_[i].index()], settings_.gravity, settings_.dt);
+  };
+  if (pool_ && pool_->worthSharing(rigidBodies_.size(), 512)) pool_->run(rigidBodies_.size(), gravity);
+  else gravity(0, 0, rigidBodies_.size());
 }
 
 std::uint32_t* World::solverSlot(ParticleId p) {
@@ -548,6 +569,7 @@ void World::buildContactPoints() {
   const ContactSet& cs = contacts_;
   const PatchSet& ps = patches_;
   const std::size_t np = ps.patches.size();
+  const double dt = settings_.dt;
   const auto kind = [&](BodyId b) { return bodies_.info[b.index()].kind; };
   // how a patch becomes points: every contact on its own centre line (raw normals; point masses of
   // deformable bodies where the patch has no valid plane), every contact on the patch's plane (small
@@ -556,33 +578,78 @@ void World::buildContactPoints() {
   enum : std::uint8_t { kRaw, kAll, kReduced, kNone };
   pointMode_.resize(np);
   pointFirst_.resize(np + 1);
+  keptContacts_.resize(ps.contacts.size());
+  keptCount_.resize(np);
+  // (1) each patch's mode and the contacts that become points: the touching ones, and the speculative ones
+  // whose gap is within speculativeDistance of touching or closes at the pair's approach speed within the
+  // step; the others could only close if the solver drove the pair together faster than that distance per
+  // step, and are left out (kept in keptContacts_ at the patch's place, in patch order)
+  const auto select = [&](int, std::size_t begin, std::size_t end) {
+    const auto velocityAt = [&](ParticleId p, const Vec3& point) -> Vec3 {
+      const BodyId b = particles_.body[p.index()];
+      switch (kind(b)) {
+        case BodyKind::Rigid: {
+          const BodyState& s = bodies_.state[b.index()];
+          return s.linearVelocity + s.angularVelocity.cross(point - s.position);
+        }
+        case BodyKind::Deformable: return particles_.velocity[p.index()];
+        default: return Vec3::Zero();
+      }
+    };
+    for (std::size_t j = begin; j < end; ++j) {
+      const ContactPatch& patch = ps.patches[j];
+      const bool deformable = kind(patch.a) == BodyKind::Deformable || (patch.b.valid() && kind(patch.b) == BodyKind::Deformable);
+      const bool fixedA = kind(patch.a) == BodyKind::Static, fixedB = !patch.b.valid() || kind(patch.b) == BodyKind::Static;
+      std::uint8_t mode = kAll;
+      if (fixedA && fixedB) mode = kNone;
+      else if (settings_.rawNormals || (deformable && !patch.validated && !patch.plane.valid())) mode = kRaw;
+      const std::uint32_t* idx = ps.contacts.data() + patch.first;
+      std::uint32_t* kept = keptContacts_.data() + patch.first;
+      std::uint32_t count = 0;
+      if (mode != kNone) {
+        for (std::uint32_t k = 0; k < patch.count; ++k) {
+          const ParticleContact& c = cs.contacts[idx[k]];
+          const double depth = mode == kRaw ? c.depth : ps.depthAlongNormal[idx[k]];
+          if (depth < 0.0) {
+            const Vec3& n = mode == kRaw ? c.normal : patch.normal;
+            const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
+            const Vec3 vb = c.b.valid() ? velocityAt(c.b, c.point) : Vec3::Zero();
+            const double approach = std::max(0.0, n.dot(velocityAt(c.a, c.point) - vb));
+            if (-depth > settings_.speculativeDistance * rsum + approach * dt) continue;
+          }
+          kept[count++] = idx[k];
+        }
+        if (count == 0) mode = kNone;
+      }
+      const auto reducible = [&](BodyId b) { return kind(b) != BodyKind::Deformable && !rodForces_[b.index()]; };
+      const bool rigidPair = reducible(patch.a) && (!patch.b.valid() || reducible(patch.b));
+      if (mode == kAll && rigidPair && count > 4) mode = kReduced;
+      pointMode_[j] = mode;
+      keptCount_[j] = count;
+    }
+  };
+  if (pool_ && pool_->worthSharing(np, 512)) pool_->runChunks(np, select);
+  else select(0, 0, np);
+  // (2) the points' places, and the solver bodies in the order their first points name them (the points
+  // of a patch of two rigid bodies all name the same two)
   pointFirst_[0] = 0;
   for (std::size_t j = 0; j < np; ++j) {
-    const ContactPatch& patch = ps.patches[j];
-    const bool deformable = kind(patch.a) == BodyKind::Deformable || (patch.b.valid() && kind(patch.b) == BodyKind::Deformable);
-    const bool fixedA = kind(patch.a) == BodyKind::Static, fixedB = !patch.b.valid() || kind(patch.b) == BodyKind::Static;
-    const auto reducible = [&](BodyId b) { return kind(b) != BodyKind::Deformable && !rodForces_[b.index()]; };
-    const bool rigidPair = reducible(patch.a) && (!patch.b.valid() || reducible(patch.b));
-    std::uint8_t mode = kAll;
-    if (fixedA && fixedB) mode = kNone;
-    else if (settings_.rawNormals || (deformable && !patch.validated && !patch.plane.valid())) mode = kRaw;
-    else if (rigidPair && patch.count > 4) mode = kReduced;
-    pointMode_[j] = mode;
-    pointFirst_[j + 1] = pointFirst_[j] + (mode == kNone ? 0 : mode == kReduced ? 4 : patch.count);
-    // solver bodies in the order their first points name them (the points of a patch of two rigid
-    // bodies all name the same two)
+    const std::uint8_t mode = pointMode_[j];
+    pointFirst_[j + 1] = pointFirst_[j] + (mode == kNone ? 0 : mode == kReduced ? 4 : keptCount_[j]);
     if (mode == kNone) continue;
-    const std::uint32_t* idx = ps.contacts.data() + patch.first;
-    const std::uint32_t named = deformable ? patch.count : 1;
+    const ContactPatch& patch = ps.patches[j];
+    const std::uint32_t* kept = keptContacts_.data() + patch.first;
+    const bool deformable = kind(patch.a) == BodyKind::Deformable || (patch.b.valid() && kind(patch.b) == BodyKind::Deformable);
+    const std::uint32_t named = deformable ? keptCount_[j] : 1;
     for (std::uint32_t k = 0; k < named; ++k) {
-      const ParticleContact& c = cs.contacts[idx[k]];
+      const ParticleContact& c = cs.contacts[kept[k]];
       solverIndex(c.a);
       if (c.b.valid()) solverIndex(c.b);
     }
   }
   contactPoints_.resize(pointFirst_[np]);
   pointParticles_.resize(pointFirst_[np]);
-  // the points themselves: patches shared among the workers, each point written at its patch's place
+  // (3) the points themselves: patches shared among the workers, each point written at its patch's place
   const auto fill = [&](int, std::size_t begin, std::size_t end) {
     // a patch's side as its points see it: a rigid body's slot and centre (shared by all its particles),
     // a deformable body's particles (a slot each, no arm), or the fixed world
@@ -612,12 +679,13 @@ void World::buildContactPoints() {
       return side.rigid ? Vec3(point - side.centre) : Vec3::Zero();
     };
     for (std::size_t j = begin; j < end; ++j) {
-      const ContactPatch& patch = ps.patches[j];
-      const std::uint32_t* idx = ps.contacts.data() + patch.first;
-      std::uint32_t out = pointFirst_[j];
       if (pointMode_[j] == kNone) continue;
+      const ContactPatch& patch = ps.patches[j];
+      const std::uint32_t* kept = keptContacts_.data() + patch.first;
+      const std::uint32_t count = keptCount_[j];
+      std::uint32_t out = pointFirst_[j];
       // (the contacts of a patch join the same two bodies, or a body and a plane)
-      const ParticleContact& first = cs.contacts[idx[0]];
+      const ParticleContact& first = cs.contacts[kept[0]];
       const auto [ma, mb] = contactMaterials(first.a, first.b, first.plane);
       const double friction = std::sqrt(ma->friction * mb->friction);
       const double restitution = std::max(ma->restitution, mb->restitution);
@@ -640,15 +708,15 @@ void World::buildContactPoints() {
       };
       switch (pointMode_[j]) {
         case kRaw:
-          for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], cs.contacts[idx[k]].normal, cs.contacts[idx[k]].depth);
+          for (std::uint32_t k = 0; k < count; ++k) addPoint(cs.contacts[kept[k]], cs.contacts[kept[k]].normal, cs.contacts[kept[k]].depth);
           continue;
         case kAll:
-          for (std::uint32_t k = 0; k < patch.count; ++k) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
+          for (std::uint32_t k = 0; k < count; ++k) addPoint(cs.contacts[kept[k]], patch.normal, ps.depthAlongNormal[kept[k]]);
           continue;
         default: break;
       }
-      const std::array<std::uint32_t, 4> reduced = manifoldOfFour(cs, idx, patch.count, ps.depthAlongNormal);
-      for (const std::uint32_t k : reduced) addPoint(cs.contacts[idx[k]], patch.normal, ps.depthAlongNormal[idx[k]]);
+      const std::array<std::uint32_t, 4> reduced = manifoldOfFour(cs, kept, count, ps.depthAlongNormal);
+      for (const std::uint32_t k : reduced) addPoint(cs.contacts[kept[k]], patch.normal, ps.depthAlongNormal[kept[k]]);
     }
   };
   // (patches differ in cost, a reduced one most: handed out in chunks)
@@ -693,16 +761,20 @@ void World::solveContacts() {
     }
   }
   // velocities back to the bodies and particles
-  for (std::size_t i = 0; i < solverBodies_.size(); ++i) {
-    const SolverBody& sb = solverBodies_[i];
-    if (solverBodyOwner_[i].valid()) {
-      BodyState& s = bodies_.state[solverBodyOwner_[i].index()];
-      s.linearVelocity = sb.v;
-      s.angularVelocity = sb.w;
-    } else {
-      particles_.velocity[solverParticleOwner_[i].index()] = sb.v;
+  const auto back = [&](int, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) {
+      const SolverBody& sb = solverBodies_[i];
+      if (solverBodyOwner_[i].valid()) {
+        BodyState& s = bodies_.state[solverBodyOwner_[i].index()];
+        s.linearVelocity = sb.v;
+        s.angularVelocity = sb.w;
+      } else {
+        particles_.velocity[solverParticleOwner_[i].index()] = sb.v;
+      }
     }
-  }
+  };
+  if (pool_ && pool_->worthSharing(solverBodies_.size(), 512)) pool_->run(solverBodies_.size(), back);
+  else back(0, 0, solverBodies_.size());
 }
 
 void World::integratePositions() {
@@ -719,6 +791,7 @@ void World::integratePositions() {
   };
   if (pool_ && pool_->worthSharing(rigidBodies_.size(), 256)) pool_->run(rigidBodies_.size(), rigid);
   else rigid(0, 0, rigidBodies_.size());
+  if (deformableBodies_.empty()) return;  // (what follows steps deformable bodies and their contacts)
   DeformableStepInput in;
   in.particles = deformableParticles_;
   in.connectors = deformableConnectors_;

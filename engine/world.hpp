@@ -175,7 +175,14 @@ class World {
   std::vector<DeformableContact> deformableContacts_;
   std::vector<std::uint8_t> pointMode_;             // per patch: how it becomes contact points
   std::vector<std::uint32_t> pointFirst_;           // per patch: its first contact point (and the end)
+  std::vector<std::uint32_t> keptContacts_;         // as PatchSet::contacts: each patch's contacts that become points
+  std::vector<std::uint32_t> keptCount_;            // per patch: how many
   std::vector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles
+  struct alignas(64) ContactTally {  // (one per worker, each on a cache line of its own)
+    std::size_t touching = 0;
+    double deepest = 0.0;
+  };
+  std::vector<ContactTally> contactTally_;
 
   // breakage
   std::vector<std::vector<ConnectorId>> bodyConnectors_;    // [B]

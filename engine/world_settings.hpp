@@ -26,6 +26,10 @@ struct WorldSettings {
   /// covers a particle riding over the hollow between four others of a lattice of touching particles
   /// (sqrt(1 + 1/2) = 1.2247), so a face sliding over a face never loses its contacts.
   double contactMargin = 0.25;
+  /// Of the speculative contacts, those the solver takes [-]: a gap below this fraction of r_a + r_b, or
+  /// one the pair's approach speed closes within the step. A farther gap could only close if the solver
+  /// itself drove the pair together faster than this distance per step, and its point is left out.
+  double speculativeDistance = 0.0;
   /// Strain of a deformable body's connector [-] beyond which the normals around it are recomputed.
   double normalStrainThreshold = 0.05;
   /// Worker threads for the step (1 = none). The results do not depend on it: bit for bit the same.

@@ -75,6 +75,56 @@ bodies:
   EXPECT_NEAR(w.bodies().state[0].position.x() - x0, v * v / (2 * mu * kG), 0.05 * v * v / (2 * mu * kG));
 }
 
+/// Two crates 3 mm apart in free space (within the speculative reach), the second approaching the first at
+/// `speed`: the gap between their particles' surfaces after each of `n` steps.
+std::vector<double> approachGaps(double speed, int n, std::vector<std::size_t>& points) {
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+gravity: [0, 0, 0]
+materials:
+  m: {density: 700, restitution: 0.0, friction: 0.5}
+bodies:
+  - shape: {box: {size: [0.3, 0.3, 0.3]}}
+    fill: {radius: 0.05}
+    material: m
+    position: [0, 0, 1]
+  - shape: {box: {size: [0.3, 0.3, 0.3]}}
+    fill: {radius: 0.05}
+    material: m
+    position: [0.303, 0, 1]
+    velocity: [)" + std::to_string(-speed) + R"(, 0, 0]
+)");
+  std::vector<double> gaps;
+  for (int i = 0; i < n; ++i) {
+    EXPECT_EQ(w.step(), StepStatus::Ok);
+    points.push_back(w.stats().contactPoints);
+    gaps.push_back(w.bodies().state[1].position.x() - w.bodies().state[0].position.x() - 0.3);
+  }
+  return gaps;
+}
+
+TEST(ContactPhysics, SpeculativeContactsSolvedWhereTheGapCanCloseWithinTheStep) {
+  // at rest, a 3 mm gap cannot close: its speculative contacts give the solver no points
+  std::vector<std::size_t> points;
+  const std::vector<double> resting = approachGaps(0.0, 3, points);
+  EXPECT_EQ(points, (std::vector<std::size_t>{0, 0, 0}));
+  EXPECT_NEAR(resting.back(), 0.003, 1e-12);
+  // at 2 m/s the gap closes in one step (8.3 mm): the points are solved, and the crates meet without
+  // overlapping (restitution 0: they go on together at half the speed, momentum conserved)
+  points.clear();
+  const std::vector<double> fast = approachGaps(2.0, 3, points);
+  EXPECT_GT(points.front(), 0u);
+  for (const double g : fast) EXPECT_GT(g, -1e-3);
+  // at 0.5 m/s (2.1 mm per step) the first step leaves it open with no points, the second closes it
+  points.clear();
+  const std::vector<double> slow = approachGaps(0.5, 3, points);
+  EXPECT_EQ(points.front(), 0u);
+  EXPECT_NEAR(slow.front(), 0.003 - 0.5 / 240.0, 1e-9);
+  EXPECT_GT(points[1], 0u);
+  for (const double g : slow) EXPECT_GT(g, -1e-3);
+}
+
 /// A crate on an incline of `degrees` (friction 0.5): its displacement along the slope over time.
 std::vector<double> inclineRun(double degrees, double seconds) {
   const double t = degrees * std::numbers::pi / 180.0;
