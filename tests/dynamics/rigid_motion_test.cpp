@@ -123,5 +123,28 @@ bodies:
   EXPECT_LT((w.bodies().state[0].angularVelocity - Vec3(0, 0, 2)).norm(), 1e-12);
 }
 
+TEST(TorqueFree, SphericalTopTurnsAboutItsConstantAngularVelocity) {
+  // a cube of 3 x 3 x 3 particles has three equal principal moments: its angular velocity stays constant
+  // and it turns about it by |w| t, whatever the axis (no principal axis to prefer)
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+gravity: [0, 0, 0]
+bodies:
+  - shape: {box: {size: [0.3, 0.3, 0.3]}}
+    fill: {radius: 0.05}
+    angular_velocity: [1, -2, 0.5]
+)");
+  const Vec3 omega(1, -2, 0.5);
+  const Vec3 m = w.bodies().info[0].inertiaLocal;
+  EXPECT_LT((m.maxCoeff() - m.minCoeff()) / m.maxCoeff(), 1e-12);
+  const Quat q0 = w.bodies().shapeOrientation(BodyId(0u));
+  for (int i = 0; i < 480; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
+  // 2 s
+  const Quat expected = Quat(Eigen::AngleAxisd(omega.norm() * 2.0, omega.normalized())) * q0;
+  EXPECT_LT(w.bodies().shapeOrientation(BodyId(0u)).angularDistance(expected), 1e-10);
+  EXPECT_LT((w.bodies().state[0].angularVelocity - omega).norm(), 1e-12);
+}
+
 }  // namespace
 }  // namespace volpar
