@@ -585,21 +585,36 @@ void World::buildContactPoints() {
   // step; the others could only close if the solver drove the pair together faster than that distance per
   // step, and are left out (kept in keptContacts_ at the patch's place, in patch order)
   const auto select = [&](int, std::size_t begin, std::size_t end) {
-    const auto velocityAt = [&](ParticleId p, const Vec3& point) -> Vec3 {
-      const BodyId b = particles_.body[p.index()];
-      switch (kind(b)) {
-        case BodyKind::Rigid: {
-          const BodyState& s = bodies_.state[b.index()];
-          return s.linearVelocity + s.angularVelocity.cross(point - s.position);
-        }
+    // a patch's side as the approach speeds see it: a rigid body's motion (looked up once per patch), a
+    // deformable body's particles, or the fixed world
+    struct Motion {
+      BodyKind kind = BodyKind::Static;
+      Vec3 v = Vec3::Zero(), w = Vec3::Zero(), centre = Vec3::Zero();
+    };
+    const auto motionOf = [&](BodyId b) {
+      Motion m;
+      if (!b.valid()) return m;
+      m.kind = kind(b);
+      if (m.kind == BodyKind::Rigid) {
+        const BodyState& s = bodies_.state[b.index()];
+        m.v = s.linearVelocity;
+        m.w = s.angularVelocity;
+        m.centre = s.position;
+      }
+      return m;
+    };
+    const auto velocityAt = [&](const Motion& m, ParticleId p, const Vec3& point) -> Vec3 {
+      switch (m.kind) {
+        case BodyKind::Rigid: return m.v + m.w.cross(point - m.centre);
         case BodyKind::Deformable: return particles_.velocity[p.index()];
         default: return Vec3::Zero();
       }
     };
     for (std::size_t j = begin; j < end; ++j) {
       const ContactPatch& patch = ps.patches[j];
-      const bool deformable = kind(patch.a) == BodyKind::Deformable || (patch.b.valid() && kind(patch.b) == BodyKind::Deformable);
-      const bool fixedA = kind(patch.a) == BodyKind::Static, fixedB = !patch.b.valid() || kind(patch.b) == BodyKind::Static;
+      const Motion motionA = motionOf(patch.a), motionB = motionOf(patch.b);
+      const bool deformable = motionA.kind == BodyKind::Deformable || motionB.kind == BodyKind::Deformable;
+      const bool fixedA = motionA.kind == BodyKind::Static, fixedB = motionB.kind == BodyKind::Static;
       std::uint8_t mode = kAll;
       if (fixedA && fixedB) mode = kNone;
       else if (settings_.rawNormals || (deformable && !patch.validated && !patch.plane.valid())) mode = kRaw;
@@ -613,16 +628,15 @@ void World::buildContactPoints() {
           if (depth < 0.0) {
             const Vec3& n = mode == kRaw ? c.normal : patch.normal;
             const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
-            const Vec3 vb = c.b.valid() ? velocityAt(c.b, c.point) : Vec3::Zero();
-            const double approach = std::max(0.0, n.dot(velocityAt(c.a, c.point) - vb));
+            const double approach = std::max(0.0, n.dot(velocityAt(motionA, c.a, c.point) - velocityAt(motionB, c.b, c.point)));
             if (-depth > settings_.speculativeDistance * rsum + approach * dt) continue;
           }
           kept[count++] = idx[k];
         }
         if (count == 0) mode = kNone;
       }
-      const auto reducible = [&](BodyId b) { return kind(b) != BodyKind::Deformable && !rodForces_[b.index()]; };
-      const bool rigidPair = reducible(patch.a) && (!patch.b.valid() || reducible(patch.b));
+      const bool rigidPair = motionA.kind != BodyKind::Deformable && !rodForces_[patch.a.index()] &&
+                             (!patch.b.valid() || (motionB.kind != BodyKind::Deformable && !rodForces_[patch.b.index()]));
       if (mode == kAll && rigidPair && count > 4) mode = kReduced;
       pointMode_[j] = mode;
       keptCount_[j] = count;
