@@ -225,10 +225,6 @@ struct Motion {
   }
 };
 
-}  // namespace
-
-namespace {
-
 /// The velocity step of a batch whose bodies' velocities are in m.
 template <class Batch>
 inline void velocityBatch(Batch& b, Motion& m) {
@@ -259,6 +255,14 @@ void ContactSolver::velocityPart(std::size_t part, const After& after) {
   V4* const v = v_.data();
   V4* const w = w_.data();
   PartBatches& pb = batches_[part];
+  const auto one = [&](std::size_t j) {
+    Batch& b = pb.batches[j];
+    Motion m;
+    m.load(v, w, b.a, b.b);
+    velocityBatch(b, m);
+    m.store(v, w, b.a, b.b);
+    after(j);
+  };
   for (std::size_t c = 0; c < 64; ++c) {
     std::size_t j = pb.start[c] / 4;
     const std::size_t end = pb.start[c + 1] / 4;
@@ -275,23 +279,10 @@ void ContactSolver::velocityPart(std::size_t part, const After& after) {
       after(j);
       after(j + 1);
     }
-    if (j < end) {
-      Batch& b = pb.batches[j];
-      Motion m;
-      m.load(v, w, b.a, b.b);
-      velocityBatch(b, m);
-      m.store(v, w, b.a, b.b);
-      after(j);
-    }
+    if (j < end) one(j);
   }
-  for (std::size_t j = pb.restBegin; j < pb.batches.size(); ++j) {
-    Batch& b = pb.batches[j];
-    Motion m;
-    m.load(v, w, b.a, b.b);
-    velocityBatch(b, m);
-    m.store(v, w, b.a, b.b);
-    after(j);
-  }
+  // (the uncoloured rows, one after another)
+  for (std::size_t j = pb.restBegin; j < pb.batches.size(); ++j) one(j);
 }
 
 bool ContactSolver::positionPart(std::size_t part) {
@@ -513,7 +504,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       next[l] = Cached{ln, V4(tx, ty, tz, 0.0f)};
       const Vec3 impulse(ln * b.n.dx[l] + tx, ln * b.n.dy[l] + ty, ln * b.n.dz[l] + tz);
       impulses_[order_[k]] = impulse;
-      sum += static_cast<double>(b.lambdaN[l]);
+      sum += static_cast<double>(ln);
       // (into the slots' double velocities: each half's slots lie apart from the other's, so the two
       // threads never write one cache line)
       if (in.a != kFixed) {
@@ -530,8 +521,9 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     return sum;
   };
 
-  // everything in the same order of phases, on one thread or two: prepare (after which the approach
-  // speeds are taken), warm start, the iterations; in each phase the two halves, then the joining points
+  // everything in the same order of phases, on one thread or two: prepare and warm start, the velocity
+  // iterations (the last handing the impulses back), the position iterations; in each phase the two
+  // halves, then the joining points
   std::array<std::size_t, 3> started{};
   // (two sets used alternately, so a thread deciding to stop never reads a flag the other has
   // already overwritten for the next sweep)

@@ -580,41 +580,41 @@ void World::buildContactPoints() {
   pointFirst_.resize(np + 1);
   keptContacts_.resize(ps.contacts.size());
   keptCount_.resize(np);
+  // a patch's side as its points see it (looked up once per patch): a rigid body's motion, shared by all
+  // its particles; a deformable body's particles, each on its own; or the fixed world
+  struct Side {
+    BodyKind kind = BodyKind::Static;
+    Vec3 v = Vec3::Zero(), w = Vec3::Zero(), centre = Vec3::Zero();
+  };
+  const auto sideOf = [&](BodyId b) {
+    Side side;
+    if (!b.valid()) return side;
+    side.kind = kind(b);
+    if (side.kind == BodyKind::Rigid) {
+      const BodyState& s = bodies_.state[b.index()];
+      side.v = s.linearVelocity;
+      side.w = s.angularVelocity;
+      side.centre = s.position;
+    }
+    return side;
+  };
   // (1) each patch's mode and the contacts that become points: the touching ones, and the speculative ones
   // whose gap is within speculativeDistance of touching or closes at the pair's approach speed within the
   // step; the others could only close if the solver drove the pair together faster than that distance per
   // step, and are left out (kept in keptContacts_ at the patch's place, in patch order)
   const auto select = [&](int, std::size_t begin, std::size_t end) {
-    // a patch's side as the approach speeds see it: a rigid body's motion (looked up once per patch), a
-    // deformable body's particles, or the fixed world
-    struct Motion {
-      BodyKind kind = BodyKind::Static;
-      Vec3 v = Vec3::Zero(), w = Vec3::Zero(), centre = Vec3::Zero();
-    };
-    const auto motionOf = [&](BodyId b) {
-      Motion m;
-      if (!b.valid()) return m;
-      m.kind = kind(b);
-      if (m.kind == BodyKind::Rigid) {
-        const BodyState& s = bodies_.state[b.index()];
-        m.v = s.linearVelocity;
-        m.w = s.angularVelocity;
-        m.centre = s.position;
-      }
-      return m;
-    };
-    const auto velocityAt = [&](const Motion& m, ParticleId p, const Vec3& point) -> Vec3 {
-      switch (m.kind) {
-        case BodyKind::Rigid: return m.v + m.w.cross(point - m.centre);
+    const auto velocityAt = [&](const Side& side, ParticleId p, const Vec3& point) -> Vec3 {
+      switch (side.kind) {
+        case BodyKind::Rigid: return side.v + side.w.cross(point - side.centre);
         case BodyKind::Deformable: return particles_.velocity[p.index()];
         default: return Vec3::Zero();
       }
     };
     for (std::size_t j = begin; j < end; ++j) {
       const ContactPatch& patch = ps.patches[j];
-      const Motion motionA = motionOf(patch.a), motionB = motionOf(patch.b);
-      const bool deformable = motionA.kind == BodyKind::Deformable || motionB.kind == BodyKind::Deformable;
-      const bool fixedA = motionA.kind == BodyKind::Static, fixedB = motionB.kind == BodyKind::Static;
+      const Side sideA = sideOf(patch.a), sideB = sideOf(patch.b);
+      const bool deformable = sideA.kind == BodyKind::Deformable || sideB.kind == BodyKind::Deformable;
+      const bool fixedA = sideA.kind == BodyKind::Static, fixedB = sideB.kind == BodyKind::Static;
       std::uint8_t mode = kAll;
       if (fixedA && fixedB) mode = kNone;
       else if (settings_.rawNormals || (deformable && !patch.validated && !patch.plane.valid())) mode = kRaw;
@@ -628,15 +628,15 @@ void World::buildContactPoints() {
           if (depth < 0.0) {
             const Vec3& n = mode == kRaw ? c.normal : patch.normal;
             const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
-            const double approach = std::max(0.0, n.dot(velocityAt(motionA, c.a, c.point) - velocityAt(motionB, c.b, c.point)));
+            const double approach = std::max(0.0, n.dot(velocityAt(sideA, c.a, c.point) - velocityAt(sideB, c.b, c.point)));
             if (-depth > settings_.speculativeDistance * rsum + approach * dt) continue;
           }
           kept[count++] = idx[k];
         }
         if (count == 0) mode = kNone;
       }
-      const bool rigidPair = motionA.kind != BodyKind::Deformable && !rodForces_[patch.a.index()] &&
-                             (!patch.b.valid() || (motionB.kind != BodyKind::Deformable && !rodForces_[patch.b.index()]));
+      const bool rigidPair = sideA.kind != BodyKind::Deformable && !rodForces_[patch.a.index()] &&
+                             (!patch.b.valid() || (sideB.kind != BodyKind::Deformable && !rodForces_[patch.b.index()]));
       if (mode == kAll && rigidPair && count > 4) mode = kReduced;
       pointMode_[j] = mode;
       keptCount_[j] = count;
@@ -665,32 +665,17 @@ void World::buildContactPoints() {
   pointParticles_.resize(pointFirst_[np]);
   // (3) the points themselves: patches shared among the workers, each point written at its patch's place
   const auto fill = [&](int, std::size_t begin, std::size_t end) {
-    // a patch's side as its points see it: a rigid body's slot and centre (shared by all its particles),
-    // a deformable body's particles (a slot each, no arm), or the fixed world
-    struct Side {
-      bool perParticle = false, rigid = false;
-      std::uint32_t slot = ContactPointInput::kFixed;
-      Vec3 centre = Vec3::Zero();
-    };
-    const auto sideOf = [&](BodyId b) {
-      Side side;
-      if (!b.valid()) return side;
-      const BodyKind k = kind(b);
-      side.perParticle = k == BodyKind::Deformable;
-      side.rigid = k == BodyKind::Rigid;
-      if (side.rigid) {
-        side.slot = bodySolverIndex_[b.index()];
-        side.centre = bodies_.state[b.index()].position;
+    // (a rigid body's points share its slot and centre; a deformable body's particles have a slot each
+    // and no arm)
+    const auto slotOf = [&](BodyId b, const Side& side, ParticleId p) {
+      switch (side.kind) {
+        case BodyKind::Rigid: return bodySolverIndex_[b.index()];
+        case BodyKind::Deformable: return *solverSlot(p);
+        default: return ContactPointInput::kFixed;
       }
-      return side;
-    };
-    const auto slotOf = [&](const Side& side, ParticleId p) {
-      if (!side.perParticle) return side.slot;
-      const std::uint32_t* slot = solverSlot(p);
-      return slot ? *slot : ContactPointInput::kFixed;
     };
     const auto arm = [&](const Side& side, const Vec3& point) -> Vec3 {
-      return side.rigid ? Vec3(point - side.centre) : Vec3::Zero();
+      return side.kind == BodyKind::Rigid ? Vec3(point - side.centre) : Vec3::Zero();
     };
     for (std::size_t j = begin; j < end; ++j) {
       if (pointMode_[j] == kNone) continue;
@@ -707,8 +692,8 @@ void World::buildContactPoints() {
       const auto addPoint = [&](const ParticleContact& c, const Vec3& normal, double depth) {
         ContactPointInput& in = contactPoints_[out];
         pointParticles_[out++] = {c.a, c.b};
-        in.a = slotOf(sideA, c.a);
-        in.b = c.b.valid() ? slotOf(sideB, c.b) : ContactPointInput::kFixed;
+        in.a = slotOf(patch.a, sideA, c.a);
+        in.b = c.b.valid() ? slotOf(patch.b, sideB, c.b) : ContactPointInput::kFixed;
         in.rA = arm(sideA, c.point);
         in.rB = arm(sideB, c.point);
         in.normal = normal;

@@ -50,17 +50,20 @@ struct Spin {
   double maxEDrift = 0.0;
 };
 
-/// A 0.2 x 0.4 x 0.6 m brick without gravity, spun at `angularVelocity` ("[x, y, z]"), dt = 1/240 s.
-World spinningBrick(const std::string& angularVelocity) {
-  return test::worldFromString(R"(
-dt: 0.004166666666666667
+/// A box of `size` ("[x, y, z]") filled with particles of radius 0.05 m, without gravity, spun at
+/// `angularVelocity` ("[x, y, z]").
+World spinningBox(const std::string& size, const std::string& angularVelocity, const std::string& dt = "0.004166666666666667") {
+  return test::worldFromString("dt: " + dt + R"(
 steps: 1
 gravity: [0, 0, 0]
 bodies:
-  - shape: {box: {size: [0.2, 0.4, 0.6]}}
+  - shape: {box: {size: )" + size + R"(}}
     fill: {radius: 0.05}
     angular_velocity: )" + angularVelocity + "\n");
 }
+
+/// A 0.2 x 0.4 x 0.6 m brick spun at `angularVelocity`, dt = 1/240 s.
+World spinningBrick(const std::string& angularVelocity) { return spinningBox("[0.2, 0.4, 0.6]", angularVelocity); }
 
 Spin spinFor(const std::string& angularVelocity, double seconds) {
   World w = spinningBrick(angularVelocity);
@@ -107,15 +110,7 @@ TEST(TorqueFree, MajorAndMinorAxisSpinsAreStable) {
 }
 
 TEST(TorqueFree, SpinAboutAPrincipalAxisRotatesAtConstantRate) {
-  World w = test::worldFromString(R"(
-dt: 0.01
-steps: 1
-gravity: [0, 0, 0]
-bodies:
-  - shape: {box: {size: [0.2, 0.4, 0.6]}}
-    fill: {radius: 0.05}
-    angular_velocity: [0, 0, 2]
-)");
+  World w = spinningBox("[0.2, 0.4, 0.6]", "[0, 0, 2]", "0.01");
   for (int i = 0; i < 100; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
   // 1 s at 2 rad/s about z
   const Quat expected(Eigen::AngleAxisd(2.0, Vec3::UnitZ()));
@@ -126,15 +121,7 @@ bodies:
 TEST(TorqueFree, SphericalTopTurnsAboutItsConstantAngularVelocity) {
   // a cube of 3 x 3 x 3 particles has three equal principal moments: its angular velocity stays constant
   // and it turns about it by |w| t, whatever the axis (no principal axis to prefer)
-  World w = test::worldFromString(R"(
-dt: 0.004166666666666667
-steps: 1
-gravity: [0, 0, 0]
-bodies:
-  - shape: {box: {size: [0.3, 0.3, 0.3]}}
-    fill: {radius: 0.05}
-    angular_velocity: [1, -2, 0.5]
-)");
+  World w = spinningBox("[0.3, 0.3, 0.3]", "[1, -2, 0.5]");
   const Vec3 omega(1, -2, 0.5);
   const Vec3 m = w.bodies().info[0].inertiaLocal;
   EXPECT_LT((m.maxCoeff() - m.minCoeff()) / m.maxCoeff(), 1e-12);
