@@ -53,6 +53,25 @@ const char* planeCaseName(PlaneCase c) {
   return "unknown";
 }
 
+const char* normalSourceName(NormalSource s) {
+  switch (s) {
+    case NormalSource::FaceA: return "face_a";
+    case NormalSource::FaceB: return "face_b";
+    case NormalSource::LineLine: return "line_line";
+    case NormalSource::LinePerpendicular: return "line_perpendicular";
+    case NormalSource::LineContactPoints: return "line_contact_points";
+    case NormalSource::NeighbourLine: return "neighbour_line";
+    case NormalSource::CachedA: return "cached_a";
+    case NormalSource::CachedB: return "cached_b";
+    case NormalSource::CentreLine: return "centre_line";
+    case NormalSource::Plane: return "plane";
+    case NormalSource::Separation: return "separation";
+    case NormalSource::Surface: return "surface";
+    case NormalSource::ContactLines: return "contact_lines";
+  }
+  return "unknown";
+}
+
 Vec3 cachedWorldNormal(const ParticleStore& particles, const BodyStore& bodies, const NormalCache& normals, ParticleId p) {
   const std::int32_t k = particles.normalIndex[p.index()];
   if (k < 0) return Vec3::Zero();

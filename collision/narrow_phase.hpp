@@ -36,7 +36,7 @@ struct ContactPatch {
   PlaneCase planeCase = PlaneCase::VertexFace11;
   NormalSource source = NormalSource::CentreLine;
   bool validated = false;
-  bool lookAhead = false;         ///< a look-ahead supplied the configuration
+  bool lookAhead = false;         ///< a look-ahead decided the plane (the configuration it predicted gave the normal)
   std::uint32_t first = 0;        ///< range in PatchSet::contacts
   std::uint32_t count = 0;
 };

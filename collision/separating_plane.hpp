@@ -70,7 +70,14 @@ enum class NormalSource : std::uint8_t {
   CachedB,         ///< B's cached surface normals (reversed)
   CentreLine,      ///< centre-to-centre direction of the two sides
   Plane,           ///< a plane's own normal
+  Separation,      ///< the direction of greatest separation of the two sides' local particle hulls
+  Surface,         ///< the smooth surface normals of the sides, interpolated at the closest points
+  ContactLines,    ///< none validated: each contact is resolved along its own centre line
 };
+inline constexpr std::size_t kNormalSourceCount = 13;
+
+/// "face_a", ... (the names used in the trajectory).
+[[nodiscard]] const char* normalSourceName(NormalSource s);
 
 struct PlaneSettings {
   int validationRings = 1;           ///< k of the k-ring neighbourhood checked by validation
