@@ -97,6 +97,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   info.principalInShape = axes.rotation;
   info.comInShape = mp.centre;
   info.source = def.source;
+  info.core = fittedCore(def.source, cloud.positions);
 
   BodyState state;
   state.orientation = (def.orientation * axes.rotation).normalized();

@@ -232,6 +232,117 @@ PrimitiveContact primitiveContact(const SourceShape& sa, const Vec3& pa, const Q
   return rc;
 }
 
+std::vector<Vec3> polytopeVertices(const std::vector<std::pair<Vec3, double>>& planes) {
+  std::vector<Vec3> out;
+  const std::size_t n = planes.size();
+  double scale = 0.0;
+  for (const auto& [normal, d] : planes) scale = std::max(scale, std::abs(d));
+  const double tol = 1e-9 * std::max(scale, 1e-9);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = i + 1; j < n; ++j)
+      for (std::size_t k = j + 1; k < n; ++k) {
+        Mat3 m;
+        m.row(0) = planes[i].first.transpose();
+        m.row(1) = planes[j].first.transpose();
+        m.row(2) = planes[k].first.transpose();
+        if (std::abs(m.determinant()) < 1e-9) continue;
+        const Vec3 x = m.partialPivLu().solve(Vec3(planes[i].second, planes[j].second, planes[k].second));
+        bool inside = true;
+        for (const auto& [normal, d] : planes) inside = inside && normal.dot(x) <= d + tol;
+        if (!inside) continue;
+        if (std::none_of(out.begin(), out.end(), [&](const Vec3& v) { return (v - x).norm() <= 10 * tol; })) out.push_back(x);
+      }
+  return out;
+}
+
+namespace {
+
+/// A convex polytope as FCL's Convex: the vertices of its planes, each face's vertices counter-clockwise
+/// seen from outside.
+std::shared_ptr<fcl::CollisionGeometryd> convexGeometry(const std::vector<std::pair<Vec3, double>>& planes) {
+  const std::vector<Vec3> vertices = polytopeVertices(planes);
+  if (vertices.size() < 4) return nullptr;
+  double scale = 0.0;
+  for (const Vec3& v : vertices) scale = std::max(scale, v.norm());
+  auto points = std::make_shared<std::vector<fcl::Vector3d>>(vertices.begin(), vertices.end());
+  auto faces = std::make_shared<std::vector<int>>();
+  int count = 0;
+  for (const auto& [normal, d] : planes) {
+    std::vector<int> on;
+    Vec3 centre = Vec3::Zero();
+    for (std::size_t v = 0; v < vertices.size(); ++v)
+      if (std::abs(normal.dot(vertices[v]) - d) <= 1e-7 * std::max(scale, 1e-9)) {
+        on.push_back(static_cast<int>(v));
+        centre += vertices[v];
+      }
+    if (on.size() < 3) continue;
+    centre /= static_cast<double>(on.size());
+    const Vec3 u = (vertices[static_cast<std::size_t>(on[0])] - centre).normalized();
+    const Vec3 w = normal.cross(u);
+    std::sort(on.begin(), on.end(), [&](int x, int y) {
+      const Vec3 dx = vertices[static_cast<std::size_t>(x)] - centre, dy = vertices[static_cast<std::size_t>(y)] - centre;
+      return std::atan2(dx.dot(w), dx.dot(u)) < std::atan2(dy.dot(w), dy.dot(u));
+    });
+    faces->push_back(static_cast<int>(on.size()));
+    faces->insert(faces->end(), on.begin(), on.end());
+    ++count;
+  }
+  return std::make_shared<fcl::Convexd>(points, count, faces);
+}
+
+/// The geometry of a core; flat cores (a one-layer plate, a chain) get a sliver of thickness so that the
+/// distance queries stay well posed.
+std::shared_ptr<fcl::CollisionGeometryd> coreGeometry(const SourceShape& s) {
+  const double sliver = 1e-7;
+  switch (s.kind) {
+    case SourceShape::Kind::Box: {
+      const Vec3 size = s.size.cwiseMax(sliver);
+      return std::make_shared<fcl::Boxd>(size.x(), size.y(), size.z());
+    }
+    case SourceShape::Kind::Sphere: return std::make_shared<fcl::Sphered>(std::max(s.radius, sliver));
+    case SourceShape::Kind::Cylinder:
+      return std::make_shared<fcl::Cylinderd>(std::max(s.radius, sliver), std::max(s.length, sliver));
+    case SourceShape::Kind::Capsule: return std::make_shared<fcl::Capsuled>(std::max(s.radius, sliver), s.length);
+    case SourceShape::Kind::Mesh: return s.facePlanes.empty() ? nullptr : convexGeometry(s.facePlanes);
+    default: return nullptr;
+  }
+}
+
+}  // namespace
+
+CoreContact coreContact(const SourceShape& sa, const Vec3& pa, const Quat& qa, const SourceShape& sb, const Vec3& pb,
+                        const Quat& qb) {
+  CoreContact rc;
+  auto ga = coreGeometry(sa), gb = coreGeometry(sb);
+  if (!ga || !gb) return rc;
+  fcl::Transform3d xa = fcl::Transform3d::Identity(), xb = fcl::Transform3d::Identity();
+  xa.linear() = qa.toRotationMatrix();
+  xa.translation() = pa;
+  xb.linear() = qb.toRotationMatrix();
+  xb.translation() = pb;
+  fcl::CollisionObjectd a(ga, xa), b(gb, xb);
+  fcl::DistanceRequestd req(true, false);
+  req.distance_tolerance = 1e-12;
+  req.gjk_solver_type = fcl::GST_LIBCCD;
+  fcl::DistanceResultd res;
+  try {
+    fcl::distance(&a, &b, req, res);
+  } catch (const std::exception&) {
+    return rc;  // GJK gave up in a degenerate pose: no reference
+  }
+  if (!(res.min_distance > 0.0)) {
+    rc.overlap = true;
+    return rc;
+  }
+  rc.distance = res.min_distance;
+  rc.pointA = res.nearest_points[0];
+  rc.pointB = res.nearest_points[1];
+  const Vec3 d = rc.pointB - rc.pointA;
+  rc.valid = d.norm() > 1e-12;
+  if (rc.valid) rc.normal = d.normalized();
+  return rc;
+}
+
 std::vector<Vec3> flatFaceNormals(const SourceShape& s, const Quat& q) {
   std::vector<Vec3> out;
   if (s.kind == SourceShape::Kind::Box)

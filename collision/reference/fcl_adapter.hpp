@@ -98,6 +98,27 @@ struct PrimitiveContact {
 [[nodiscard]] PrimitiveContact primitiveContact(const SourceShape& a, const Vec3& originA, const Quat& orientationA,
                                                 const SourceShape& b, const Vec3& originB, const Quat& orientationB);
 
+/// The exact reference between two bodies filled from convex solids (SourceShape::isConvexSolid): the
+/// closest points of their cores (SourceShape::fittedCore, placed at the shape frames' poses), found by FCL's
+/// distance query (closed forms where FCL has them, GJK otherwise). The normal is the direction from A's
+/// closest point to B's: the direction in which the rounded bodies (core plus particle radius) touch, and
+/// the separating-plane normal a body filled from the core exactly would have. Cores that overlap (the
+/// rounded bodies interpenetrate by more than the sum of the radii) have no reference: libccd's EPA, which
+/// signed distance would need, can abort the process in such poses (fcl-guide, section 5).
+struct CoreContact {
+  bool valid = false;        ///< both are convex solids, their cores are apart and FCL gave a direction
+  bool overlap = false;      ///< the cores overlap
+  Vec3 normal = Vec3::Zero();  ///< unit, from A towards B
+  double distance = 0.0;     ///< between the cores [m] (0 when they overlap)
+  Vec3 pointA = Vec3::Zero(), pointB = Vec3::Zero();  ///< the closest points, world [m]
+};
+[[nodiscard]] CoreContact coreContact(const SourceShape& coreA, const Vec3& originA, const Quat& orientationA,
+                                      const SourceShape& coreB, const Vec3& originB, const Quat& orientationB);
+
+/// The vertices of a convex polytope given by its face planes n . x <= d (duplicates merged); empty when the
+/// planes bound no volume.
+[[nodiscard]] std::vector<Vec3> polytopeVertices(const std::vector<std::pair<Vec3, double>>& planes);
+
 /// Unit normals of the flat faces of a primitive in the world (box faces, cylinder caps); empty otherwise.
 [[nodiscard]] std::vector<Vec3> flatFaceNormals(const SourceShape& s, const Quat& orientation);
 

@@ -147,6 +147,14 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
   return cloud;
 }
 
+void useEstimatedNormals(ParticleCloud& cloud) {
+  const EstimatedNormals est = estimateNormals(cloud.positions, cloud.connectors);
+  cloud.normals = est.normal;
+  cloud.surface = est.surface;
+  cloud.features.assign(cloud.size(), 0);
+  cloud.featureNormals.assign(cloud.size(), {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()});
+}
+
 Result<ParticleCloud> buildParticleList(const ParticleListSettings& in) {
   ParticleCloud cloud;
   const std::size_t n = in.positions.size();

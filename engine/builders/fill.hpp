@@ -53,6 +53,10 @@ struct ParticleListSettings {
 };
 [[nodiscard]] Result<ParticleCloud> buildParticleList(const ParticleListSettings& settings);
 
+/// Replaces a cloud's surface flags, normals and features by those estimated from its particles and
+/// connectors alone (collision/normal_estimation.hpp), as an explicit particle list gets them.
+void useEstimatedNormals(ParticleCloud& cloud);
+
 /// Pairs (i < j) of points closer than `reach`, ascending; uses a grid, never all pairs.
 [[nodiscard]] std::vector<std::array<std::uint32_t, 2>> connectWithin(std::span<const Vec3> points, double reach);
 

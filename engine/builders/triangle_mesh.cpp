@@ -129,6 +129,22 @@ void TriangleMesh::featureNormals(const Vec3& p, double band, std::vector<Vec3>&
   }
 }
 
+std::vector<std::pair<Vec3, double>> TriangleMesh::convexFacePlanes() const {
+  std::vector<std::pair<Vec3, double>> planes;
+  const double scale = bounds().diagonal().norm();
+  for (const auto& tr : triangles) {
+    const Vec3 n = (vertices[tr[1]] - vertices[tr[0]]).cross(vertices[tr[2]] - vertices[tr[0]]).normalized();
+    const double d = n.dot(vertices[tr[0]]);
+    for (const Vec3& v : vertices)
+      if (n.dot(v) > d + 1e-9 * scale) return {};
+    const bool seen = std::any_of(planes.begin(), planes.end(), [&](const std::pair<Vec3, double>& p) {
+      return (p.first - n).norm() < 1e-9 && std::abs(p.second - d) < 1e-9 * scale;
+    });
+    if (!seen) planes.emplace_back(n, d);
+  }
+  return planes;
+}
+
 Eigen::AlignedBox3d TriangleMesh::bounds() const {
   Eigen::AlignedBox3d box;
   for (const Vec3& v : vertices) box.extend(v);

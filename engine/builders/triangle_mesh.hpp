@@ -4,6 +4,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "engine/core/status.hpp"
@@ -29,6 +30,9 @@ struct TriangleMesh {
   [[nodiscard]] double distance(const Vec3& p) const;
   /// Unit normals of the distinct face planes within `band` [m] of the nearest one, nearest first.
   void featureNormals(const Vec3& p, double band, std::vector<Vec3>& out) const;
+  /// The distinct face planes n . x <= d (unit outward n) when the solid is convex (every vertex on the
+  /// inner side of every face plane, within 1e-9 of the mesh's size); empty otherwise.
+  [[nodiscard]] std::vector<std::pair<Vec3, double>> convexFacePlanes() const;
   [[nodiscard]] Eigen::AlignedBox3d bounds() const;
   /// Enclosed volume [m^3] (positive once makeSolid() succeeded).
   [[nodiscard]] double volume() const;

@@ -44,7 +44,8 @@ struct BodyInfo {
   Quat principalInShape = Quat::Identity();    ///< rotation from principal-frame to shape-frame coordinates
   Vec3 comInShape = Vec3::Zero();              ///< centre of mass in shape-frame coordinates [m]
   std::vector<ParticleId> particles;           ///< the body's particles, ascending (empty once retired)
-  SourceShape source;                          ///< the primitive it was filled from, if any
+  SourceShape source;                          ///< the solid it was filled from, if any
+  SourceShape core;                            ///< that solid fitted to the particle centres (source_shape.hpp)
   bool alive = true;                           ///< false once the body broke apart into new bodies
   std::int64_t createdStep = 0;                ///< the first step after which it exists (0: from the start)
   std::int64_t retiredStep = -1;               ///< the step (1 = the first) in which it broke apart, -1 while alive

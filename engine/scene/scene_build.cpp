@@ -59,7 +59,8 @@ std::string instanceName(const BodyDesc& b, int i, int j, int k) {
 
 }  // namespace
 
-Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body) {
+Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body, SourceShape* source) {
+  if (source) *source = sourceOf(body.shape);
   auto wrap = [&](const Error& e) {
     return at(desc, body.mark, "body '" + body.name + "': " + e.toString());
   };
@@ -79,6 +80,7 @@ Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body) {
     auto m = readObj(mesh->path, mesh->scale);
     if (!m) return wrap(m.error());
     if (auto ok = m->makeSolid(); !ok) return wrap(ok.error());
+    if (source) source->facePlanes = m->convexFacePlanes();
     shape = std::make_unique<MeshShape>(std::make_shared<const TriangleMesh>(std::move(m.value())));
   } else {
     shape = primitive(body.shape);
@@ -113,7 +115,8 @@ Result<BuiltScene> buildScene(const SceneDesc& desc) {
   std::size_t totalParticles = 0;
   for (std::size_t d = 0; d < desc.bodies.size(); ++d) {
     const BodyDesc& b = desc.bodies[d];
-    auto cloud = buildCloud(desc, b);
+    SourceShape source;
+    auto cloud = buildCloud(desc, b, &source);
     if (!cloud) return cloud.error();
     if (!b.pins.empty()) {
       cloud->pinned.assign(cloud->size(), 0);
@@ -155,7 +158,7 @@ Result<BuiltScene> buildScene(const SceneDesc& desc) {
           }
           def.particleMass = b.particleMass;
           def.totalMass = b.mass;
-          def.source = sourceOf(b.shape);
+          def.source = source;
           auto id = world.addBody(def, *cloud);
           if (!id) return at(desc, b.mark, id.error().message);
           built.bodySource.push_back(d);

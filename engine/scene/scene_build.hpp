@@ -23,7 +23,8 @@ inline constexpr std::size_t kMaxSceneParticles = 50'000'000;
 
 [[nodiscard]] Result<BuiltScene> buildScene(const SceneDesc& desc);
 
-/// Fills the shape of one body description (no placement). `desc.path` locates errors.
-[[nodiscard]] Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body);
+/// Fills the shape of one body description (no placement). `desc.path` locates errors. With `source`, also
+/// describes the solid it filled (SourceShape; for a convex mesh with its face planes).
+[[nodiscard]] Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body, SourceShape* source = nullptr);
 
 }  // namespace volpar
