@@ -92,6 +92,18 @@ void attrString(hid_t obj, const std::string& name, const std::string& value) {
   check(H5Awrite(attr.get(), type.get(), &p), "attribute " + name);
 }
 
+/// Array of variable-length UTF-8 strings as an attribute (the names of an enum's values, in order).
+void attrStrings(hid_t obj, const std::string& name, const std::vector<std::string>& values) {
+  Hid type = vlenString();
+  const hsize_t n = values.size();
+  Hid space = checked(H5Screate_simple(1, &n, nullptr), H5Sclose, "space");
+  Hid attr = checked(H5Acreate2(obj, name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+                     "attribute " + name);
+  std::vector<const char*> ptrs;
+  for (const auto& v : values) ptrs.push_back(v.c_str());
+  if (n > 0) check(H5Awrite(attr.get(), type.get(), ptrs.data()), "attribute " + name);
+}
+
 template <class T>
 hid_t nativeType();
 template <>
@@ -360,6 +372,39 @@ struct ContactSeries {
   }
 };
 
+/// Contact patches of every frame (the narrow phase's PatchSet) as ragged arrays, like ContactSeries.
+struct PatchSeries {
+  Hid group;
+  Series offset, count, bodyA, bodyB, plane, planeCase, source, point, normal, depth, validated, lookAhead, contacts;
+
+  explicit PatchSeries(hid_t file = H5I_INVALID_HID) {
+    if (file < 0) return;
+    group = ::volpar::group(file, "patches");
+    offset = Series(group.get(), "offset", H5T_STD_I64LE, {});
+    count = Series(group.get(), "count", H5T_STD_I64LE, {});
+    bodyA = Series(group.get(), "body_a", H5T_STD_I32LE, {});
+    bodyB = Series(group.get(), "body_b", H5T_STD_I32LE, {});
+    plane = Series(group.get(), "plane", H5T_STD_I32LE, {});
+    planeCase = Series(group.get(), "case", H5T_STD_I32LE, {});
+    source = Series(group.get(), "source", H5T_STD_I32LE, {});
+    point = Series(group.get(), "point", H5T_IEEE_F64LE, {3});
+    normal = Series(group.get(), "normal", H5T_IEEE_F64LE, {3});
+    depth = Series(group.get(), "depth", H5T_IEEE_F64LE, {});
+    validated = Series(group.get(), "validated", H5T_STD_I8LE, {});
+    lookAhead = Series(group.get(), "look_ahead", H5T_STD_I8LE, {});
+    contacts = Series(group.get(), "contacts", H5T_STD_I32LE, {});
+    attrString(point.id(), "unit", "m");
+    attrString(depth.id(), "unit", "m");
+    std::vector<std::string> names;
+    for (std::size_t k = 0; k < kPlaneCaseCount; ++k) names.emplace_back(planeCaseName(static_cast<PlaneCase>(k)));
+    attrStrings(planeCase.id(), "case_names", names);
+    names.clear();
+    for (std::size_t k = 0; k < kNormalSourceCount; ++k)
+      names.emplace_back(normalSourceName(static_cast<NormalSource>(k)));
+    attrStrings(source.id(), "source_names", names);
+  }
+};
+
 /// Per-body data that does not change over a body's life, one row per body, appended as bodies appear.
 struct BodyInfoSeries {
   Series name, kind, mass, moments, axes, com, created, retired, parent;
@@ -408,6 +453,7 @@ struct H5mdWriter::Impl {
   Element kinetic, potential, total, linearMomentum, angularMomentum, contactCount, maxPenetration;
   Element patchCount, patchesByCase, unvalidatedPatches, lookAheads, candidates;
   ContactSeries contacts;
+  PatchSeries patches;
   BodyInfoSeries bodyInfo;
   BreakageSeries breakage;
   std::size_t bodiesWritten = 0;       // rows in bodyInfo
@@ -417,6 +463,9 @@ struct H5mdWriter::Impl {
   std::vector<double> bodyVec3, bodyQuat;
   std::vector<std::int32_t> contactA, contactB, contactPlane;
   std::vector<double> contactPoint, contactNormal, contactDepth;
+  std::vector<std::int32_t> patchA, patchB, patchPlane, patchCase, patchSource, patchContacts;
+  std::vector<double> patchPoint, patchNormal, patchDepth;
+  std::vector<std::int8_t> patchValidated, patchLookAhead;
   std::size_t particles = 0;
 
   /// Rows for bodies created since the last call; the retirement of bodies that broke apart.
@@ -538,6 +587,12 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
           "link step");
     check(H5Lcreate_hard(f, "particles/all/position/time", impl->contacts.group.get(), "time", H5P_DEFAULT, H5P_DEFAULT),
           "link time");
+    // /patches (the engine's own group): the frame's contact patches, ragged like /contacts
+    impl->patches = PatchSeries(f);
+    check(H5Lcreate_hard(f, "particles/all/position/step", impl->patches.group.get(), "step", H5P_DEFAULT, H5P_DEFAULT),
+          "link step");
+    check(H5Lcreate_hard(f, "particles/all/position/time", impl->patches.group.get(), "time", H5P_DEFAULT, H5P_DEFAULT),
+          "link time");
     // /parameters
     {
       Hid par = group(f, "parameters");
@@ -638,6 +693,7 @@ Status H5mdWriter::writeFrame(const World& world) {
     m.lookAheads.append(H5T_NATIVE_INT64, &lookAheads, step, time);
     m.candidates.append(H5T_NATIVE_INT64, &candidates, step, time);
     writeContacts(world.contacts());
+    writePatches(world.patches());
 
     check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");
   } catch (const H5Failure& e) {
@@ -683,6 +739,54 @@ void H5mdWriter::writeContacts(const ContactSet& set) {
   cs.point.appendRows(H5T_NATIVE_DOUBLE, m.contactPoint.data(), n);
   cs.normal.appendRows(H5T_NATIVE_DOUBLE, m.contactNormal.data(), n);
   cs.depth.appendRows(H5T_NATIVE_DOUBLE, m.contactDepth.data(), n);
+}
+
+void H5mdWriter::writePatches(const PatchSet& set) {
+  Impl& m = *impl_;
+  const std::size_t n = set.patches.size();
+  m.patchA.resize(n);
+  m.patchB.resize(n);
+  m.patchPlane.resize(n);
+  m.patchCase.resize(n);
+  m.patchSource.resize(n);
+  m.patchContacts.resize(n);
+  m.patchPoint.resize(3 * n);
+  m.patchNormal.resize(3 * n);
+  m.patchDepth.resize(n);
+  m.patchValidated.resize(n);
+  m.patchLookAhead.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const ContactPatch& p = set.patches[i];
+    m.patchA[i] = static_cast<std::int32_t>(p.a.value);
+    m.patchB[i] = p.b.valid() ? static_cast<std::int32_t>(p.b.value) : -1;
+    m.patchPlane[i] = p.plane.valid() ? static_cast<std::int32_t>(p.plane.value) : -1;
+    m.patchCase[i] = static_cast<std::int32_t>(p.planeCase);
+    m.patchSource[i] = static_cast<std::int32_t>(p.source);
+    m.patchContacts[i] = static_cast<std::int32_t>(p.count);
+    for (int k = 0; k < 3; ++k) {
+      m.patchPoint[3 * i + static_cast<std::size_t>(k)] = p.point[k];
+      m.patchNormal[3 * i + static_cast<std::size_t>(k)] = p.normal[k];
+    }
+    m.patchDepth[i] = p.depth;
+    m.patchValidated[i] = p.validated ? 1 : 0;
+    m.patchLookAhead[i] = p.lookAhead ? 1 : 0;
+  }
+  PatchSeries& ps = m.patches;
+  const auto offset = static_cast<std::int64_t>(ps.bodyA.rows());
+  const auto count = static_cast<std::int64_t>(n);
+  ps.offset.append(H5T_NATIVE_INT64, &offset);
+  ps.count.append(H5T_NATIVE_INT64, &count);
+  ps.bodyA.appendRows(H5T_NATIVE_INT32, m.patchA.data(), n);
+  ps.bodyB.appendRows(H5T_NATIVE_INT32, m.patchB.data(), n);
+  ps.plane.appendRows(H5T_NATIVE_INT32, m.patchPlane.data(), n);
+  ps.planeCase.appendRows(H5T_NATIVE_INT32, m.patchCase.data(), n);
+  ps.source.appendRows(H5T_NATIVE_INT32, m.patchSource.data(), n);
+  ps.point.appendRows(H5T_NATIVE_DOUBLE, m.patchPoint.data(), n);
+  ps.normal.appendRows(H5T_NATIVE_DOUBLE, m.patchNormal.data(), n);
+  ps.depth.appendRows(H5T_NATIVE_DOUBLE, m.patchDepth.data(), n);
+  ps.validated.appendRows(H5T_NATIVE_INT8, m.patchValidated.data(), n);
+  ps.lookAhead.appendRows(H5T_NATIVE_INT8, m.patchLookAhead.data(), n);
+  ps.contacts.appendRows(H5T_NATIVE_INT32, m.patchContacts.data(), n);
 }
 
 Status H5mdWriter::writeBreakEvents(const World& world) {

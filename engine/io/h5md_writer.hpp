@@ -46,6 +46,7 @@ class H5mdWriter {
   struct Impl;
   explicit H5mdWriter(std::unique_ptr<Impl> impl, std::string path);
   void writeContacts(const ContactSet& contacts);  // throws the file's internal failure type
+  void writePatches(const PatchSet& patches);      // likewise
 
   std::unique_ptr<Impl> impl_;
   std::string path_;

@@ -8,12 +8,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <bit>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <tuple>
 
 #include "engine/io/h5md_reader.hpp"
+#include "engine/io/h5md_writer.hpp"
 #include "engine/io/xdmf_writer.hpp"
 #include "engine/run_loop.hpp"
 #include "tests/support/test_support.hpp"
@@ -129,6 +132,184 @@ TEST(H5md, RoundTripOfEveryFrame) {
   EXPECT_NE(xml.find("tumble.h5:/particles/all/position/value"), std::string::npos);
   EXPECT_NE(xml.find("<Grid Name=\"step_40\""), std::string::npos);
   EXPECT_NE(xml.find("Dimensions=\"5 " + std::to_string(world.particles().size()) + " 3\""), std::string::npos);
+}
+
+/// A whole dataset (any rank) in the memory type `type`.
+template <class T>
+std::vector<T> readAll(hid_t file, const char* name, hid_t type) {
+  const hid_t ds = H5Dopen2(file, name, H5P_DEFAULT);
+  EXPECT_GE(ds, 0) << name;
+  const hid_t space = H5Dget_space(ds);
+  std::vector<T> out(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
+  if (!out.empty()) {
+    EXPECT_GE(H5Dread(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()), 0) << name;
+  }
+  H5Sclose(space);
+  H5Dclose(ds);
+  return out;
+}
+
+/// The file type of a dataset: class, size in bytes, signedness (integers).
+std::tuple<H5T_class_t, std::size_t, H5T_sign_t> fileTypeOf(hid_t file, const char* name) {
+  const hid_t ds = H5Dopen2(file, name, H5P_DEFAULT);
+  const hid_t type = H5Dget_type(ds);
+  const H5T_class_t c = H5Tget_class(type);
+  auto out = std::make_tuple(c, H5Tget_size(type), c == H5T_INTEGER ? H5Tget_sign(type) : H5T_SGN_ERROR);
+  H5Tclose(type);
+  H5Dclose(ds);
+  return out;
+}
+
+/// An attribute holding an array of variable-length strings.
+std::vector<std::string> readStringsAttr(hid_t file, const char* object, const char* name) {
+  const hid_t attr = H5Aopen_by_name(file, object, name, H5P_DEFAULT, H5P_DEFAULT);
+  EXPECT_GE(attr, 0) << object << "@" << name;
+  const hid_t space = H5Aget_space(attr);
+  std::vector<char*> ptrs(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)), nullptr);
+  const hid_t mem = H5Tcopy(H5T_C_S1);
+  H5Tset_size(mem, H5T_VARIABLE);
+  H5Tset_cset(mem, H5T_CSET_UTF8);
+  EXPECT_GE(H5Aread(attr, mem, ptrs.data()), 0);
+  std::vector<std::string> out;
+  for (char* p : ptrs) {
+    out.emplace_back(p ? p : "");
+    H5free_memory(p);
+  }
+  H5Tclose(mem);
+  H5Sclose(space);
+  H5Aclose(attr);
+  return out;
+}
+
+bool sameBits(double a, double b) { return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b); }
+
+TEST(H5md, PatchRecordsOfEveryFrameReadBackBitForBit) {
+  // bodies of every builder flying through each other, a static slab and two planes (scenes/regression)
+  auto desc = loadScene(test::sourcePath("scenes/regression/crossing.yaml"));
+  ASSERT_TRUE(desc.ok()) << desc.error().toString();
+  auto built = buildScene(*desc);
+  ASSERT_TRUE(built.ok()) << built.error().toString();
+  World& world = built->world;
+
+  // write a frame every 6 steps and keep what the narrow phase had at each
+  constexpr int kSteps = 360, kEvery = 6;
+  const std::string path = test::tempDir() + "/patches.h5";
+  TrajectoryMeta meta{desc->name, "crossing.yaml", desc->text, {}, kEvery, kSteps};
+  auto writer = H5mdWriter::create(path, world, meta);
+  ASSERT_TRUE(writer.ok()) << writer.error().toString();
+  std::vector<std::vector<ContactPatch>> expected;
+  std::vector<std::size_t> narrowPhaseContacts;
+  const auto write = [&] {
+    ASSERT_TRUE((*writer)->writeFrame(world).ok());
+    expected.push_back(world.patches().patches);
+    narrowPhaseContacts.push_back(world.patches().contacts.size());
+    EXPECT_EQ(world.patches().contacts.size(), world.contacts().contacts.size());
+  };
+  write();
+  for (int i = 1; i <= kSteps; ++i) {
+    ASSERT_EQ(world.step(), StepStatus::Ok);
+    if (i % kEvery == 0) write();
+  }
+  ASSERT_TRUE((*writer)->writeSidecar().ok());
+  ASSERT_TRUE((*writer)->close().ok());
+  const std::size_t frames = expected.size();
+  ASSERT_EQ(frames, static_cast<std::size_t>(kSteps / kEvery + 1));
+
+  // the run must exercise what is checked: frames without patches; plane, body-pair and self-contact
+  // patches; validated and unvalidated ones; planes decided by a look-ahead and others
+  std::size_t total = 0, emptyFrames = 0, planePatches = 0, selfPatches = 0, pairPatches = 0, unvalidated = 0,
+              lookAheads = 0;
+  for (const auto& frame : expected) {
+    total += frame.size();
+    emptyFrames += frame.empty() ? 1 : 0;
+    for (const ContactPatch& p : frame) {
+      (p.plane.valid() ? planePatches : p.a == p.b ? selfPatches : pairPatches) += 1;
+      unvalidated += p.validated ? 0 : 1;
+      lookAheads += p.lookAhead ? 1 : 0;
+    }
+  }
+  EXPECT_GT(emptyFrames, 0u);
+  EXPECT_GT(planePatches, 0u);
+  EXPECT_GT(selfPatches, 0u);
+  EXPECT_GT(pairPatches, 0u);
+  EXPECT_GT(unvalidated, 0u);
+  EXPECT_LT(unvalidated, total);
+  EXPECT_GT(lookAheads, 0u);
+  EXPECT_LT(lookAheads, total);
+
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  const auto offset = readAll<std::int64_t>(f, "/patches/offset", H5T_NATIVE_INT64);
+  const auto count = readAll<std::int64_t>(f, "/patches/count", H5T_NATIVE_INT64);
+  const auto bodyA = readAll<std::int32_t>(f, "/patches/body_a", H5T_NATIVE_INT32);
+  const auto bodyB = readAll<std::int32_t>(f, "/patches/body_b", H5T_NATIVE_INT32);
+  const auto plane = readAll<std::int32_t>(f, "/patches/plane", H5T_NATIVE_INT32);
+  const auto planeCase = readAll<std::int32_t>(f, "/patches/case", H5T_NATIVE_INT32);
+  const auto source = readAll<std::int32_t>(f, "/patches/source", H5T_NATIVE_INT32);
+  const auto point = readAll<double>(f, "/patches/point", H5T_NATIVE_DOUBLE);
+  const auto normal = readAll<double>(f, "/patches/normal", H5T_NATIVE_DOUBLE);
+  const auto depth = readAll<double>(f, "/patches/depth", H5T_NATIVE_DOUBLE);
+  const auto validated = readAll<std::int8_t>(f, "/patches/validated", H5T_NATIVE_INT8);
+  const auto lookAhead = readAll<std::int8_t>(f, "/patches/look_ahead", H5T_NATIVE_INT8);
+  const auto contacts = readAll<std::int32_t>(f, "/patches/contacts", H5T_NATIVE_INT32);
+  const auto step = readAll<std::int64_t>(f, "/patches/step", H5T_NATIVE_INT64);
+  const auto time = readAll<double>(f, "/patches/time", H5T_NATIVE_DOUBLE);
+  ASSERT_EQ(offset.size(), frames);
+  ASSERT_EQ(count.size(), frames);
+  for (const std::size_t n : {bodyA.size(), bodyB.size(), plane.size(), planeCase.size(), source.size(), depth.size(),
+                              validated.size(), lookAhead.size(), contacts.size()})
+    ASSERT_EQ(n, total);
+  ASSERT_EQ(point.size(), 3 * total);
+  ASSERT_EQ(normal.size(), 3 * total);
+  // the frames' clock is the particles' (hard links)
+  EXPECT_EQ(step, readAll<std::int64_t>(f, "/particles/all/position/step", H5T_NATIVE_INT64));
+  EXPECT_EQ(time, readAll<double>(f, "/particles/all/position/time", H5T_NATIVE_DOUBLE));
+  for (const char* link : {"/patches/step", "/patches/time"}) {
+    H5L_info_t info;
+    ASSERT_GE(H5Lget_info(f, link, &info, H5P_DEFAULT), 0);
+    EXPECT_EQ(info.type, H5L_TYPE_HARD) << link;
+  }
+
+  std::int64_t row = 0;
+  for (std::size_t t = 0; t < frames; ++t) {
+    SCOPED_TRACE("frame " + std::to_string(t));
+    ASSERT_EQ(offset[t], row);
+    ASSERT_EQ(count[t], static_cast<std::int64_t>(expected[t].size()));
+    std::int64_t frameContacts = 0;
+    for (const ContactPatch& p : expected[t]) {
+      const auto i = static_cast<std::size_t>(row++);
+      EXPECT_EQ(bodyA[i], static_cast<std::int32_t>(p.a.value));
+      EXPECT_EQ(bodyB[i], p.b.valid() ? static_cast<std::int32_t>(p.b.value) : -1);
+      EXPECT_EQ(plane[i], p.plane.valid() ? static_cast<std::int32_t>(p.plane.value) : -1);
+      EXPECT_EQ(planeCase[i], static_cast<std::int32_t>(p.planeCase));
+      EXPECT_EQ(source[i], static_cast<std::int32_t>(p.source));
+      for (std::size_t k = 0; k < 3; ++k) {
+        EXPECT_TRUE(sameBits(point[3 * i + k], p.point[static_cast<Eigen::Index>(k)])) << "point of patch " << i;
+        EXPECT_TRUE(sameBits(normal[3 * i + k], p.normal[static_cast<Eigen::Index>(k)])) << "normal of patch " << i;
+      }
+      EXPECT_TRUE(sameBits(depth[i], p.depth)) << "depth of patch " << i;
+      EXPECT_EQ(validated[i], p.validated ? 1 : 0);
+      EXPECT_EQ(lookAhead[i], p.lookAhead ? 1 : 0);
+      EXPECT_EQ(contacts[i], static_cast<std::int32_t>(p.count));
+      frameContacts += contacts[i];
+    }
+    // every contact the narrow phase had (touching and speculative) is in exactly one patch
+    EXPECT_EQ(frameContacts, static_cast<std::int64_t>(narrowPhaseContacts[t]));
+  }
+
+  // types: int32 indices, int8 flags, float64 vectors; the enums' names as attributes, in enum order
+  EXPECT_EQ(fileTypeOf(f, "/patches/body_a"), std::make_tuple(H5T_INTEGER, std::size_t{4}, H5T_SGN_2));
+  EXPECT_EQ(fileTypeOf(f, "/patches/validated"), std::make_tuple(H5T_INTEGER, std::size_t{1}, H5T_SGN_2));
+  EXPECT_EQ(fileTypeOf(f, "/patches/look_ahead"), std::make_tuple(H5T_INTEGER, std::size_t{1}, H5T_SGN_2));
+  EXPECT_EQ(fileTypeOf(f, "/patches/normal"), std::make_tuple(H5T_FLOAT, std::size_t{8}, H5T_SGN_ERROR));
+  std::vector<std::string> caseNames, sourceNames;
+  for (std::size_t k = 0; k < kPlaneCaseCount; ++k) caseNames.emplace_back(planeCaseName(static_cast<PlaneCase>(k)));
+  for (std::size_t k = 0; k < kNormalSourceCount; ++k)
+    sourceNames.emplace_back(normalSourceName(static_cast<NormalSource>(k)));
+  EXPECT_EQ(readStringsAttr(f, "/patches/case", "case_names"), caseNames);
+  EXPECT_EQ(readStringsAttr(f, "/patches/source", "source_names"), sourceNames);
+  H5Fclose(f);
+
 }
 
 /// Starts `volpar run` on a long scene with extra arguments; after `waitMs` (if > 0) sends `signal`.

@@ -4,7 +4,8 @@
 Validates the H5MD 1.1 layout documented in docs/trajectory-format.md, the consistency of the data
 (rigid bodies stay rigid, centres of mass match the particles, energies add up, bodies in free flight
 follow v(t) = v0 + g t, bodies created by breakage exist exactly between their steps of creation and
-retirement), the stored scene text and the XDMF sidecar.
+retirement), the contact and contact-patch records of every frame, the stored scene text and the XDMF
+sidecar.
 
 usage: validate_h5md.py FILE.h5 [--scene SCENE.yaml] [--frames N]
        validate_h5md.py --self-test FILE.h5   # damaged copies of FILE must be rejected
@@ -205,6 +206,9 @@ def validate(path, scene=None, frames=None):
             expect(np.allclose(depth[s:e][~pair], radius[pa[~pair]] - height, atol=1e-12),
                    f"frame {t}: plane contact depth != r - height")
 
+    # /patches: the narrow phase's contact patches, ragged per-frame arrays
+    check_patches(f, step, exists, kinds, body, planes)
+
     # /parameters
     text = par["scene"][()]
     text = text.decode() if isinstance(text, bytes) else text
@@ -227,6 +231,83 @@ def validate(path, scene=None, frames=None):
             expect(items[0].text.split()[0] == str(i), f"sidecar hyperslab of frame {i}")
     f.close()
     return T, P, B
+
+
+def check_patches(f, step, exists, kinds, particle_body, planes):
+    """/patches: one row per contact patch (one separating plane each) of every frame. Returns offset, count."""
+    T, B = exists.shape
+    expect("patches" in f, "missing /patches")
+    p = f["patches"]
+    expect(np.array_equal(p["step"][()], step) and np.array_equal(p["time"][()], f["particles/all/position/time"][()]),
+           "patches sampled at different steps")
+    offset, count = p["offset"][()], p["count"][()]
+    expect(offset.shape == count.shape == (T,) and offset.dtype == count.dtype == np.int64,
+           "patch offset/count must be int64 [T]")
+    expect(offset[0] == 0 and np.array_equal(offset[1:], np.cumsum(count)[:-1]), "patch offsets are not cumulative")
+    obs = f["observables"]
+    expect(np.array_equal(count, obs["patch_count/value"][()]), "patch_count observable != patches per frame")
+    N = int(count.sum())
+    columns = {"body_a": ((N,), "i4"), "body_b": ((N,), "i4"), "plane": ((N,), "i4"), "case": ((N,), "i4"),
+               "source": ((N,), "i4"), "point": ((N, 3), "f8"), "normal": ((N, 3), "f8"), "depth": ((N,), "f8"),
+               "validated": ((N,), "i1"), "look_ahead": ((N,), "i1"), "contacts": ((N,), "i4")}
+    for name, (shape, dtype) in columns.items():
+        d = p[name]
+        expect(d.shape == shape and d.dtype == np.dtype("<" + dtype), f"/patches/{name} is {d.dtype} {d.shape}, "
+                                                                     f"expected {dtype} {shape}")
+        expect(d.chunks is not None and d.compression is not None and d.maxshape[0] is None,
+               f"/patches/{name} is not chunked, compressed and extendible")
+    expect(p["point"].attrs["unit"] == "m" and p["depth"].attrs["unit"] == "m", "patch point/depth units")
+    col = {name: p[name][()] for name in columns}
+    case_names = [str(n) for n in p["case"].attrs["case_names"]]
+    source_names = [str(n) for n in p["source"].attrs["source_names"]]
+    expect(len(case_names) > 0 and len(set(case_names)) == len(case_names), "case_names must be distinct names")
+    expect(len(source_names) > 0 and len(set(source_names)) == len(source_names), "source_names must be distinct names")
+    stored = obs["patches_by_case/case_names"].asstr()[()]
+    expect(list(stored) == case_names, "/patches/case case_names != /observables/patches_by_case/case_names")
+    case, source = col["case"], col["source"]
+    expect(np.all((case >= 0) & (case < len(case_names))), "patch case outside case_names")
+    expect(np.all((source >= 0) & (source < len(source_names))), "patch source outside source_names")
+    expect(np.all(np.isin(col["validated"], [0, 1])) and np.all(np.isin(col["look_ahead"], [0, 1])),
+           "validated/look_ahead must be 0 or 1")
+    expect(np.all(np.isfinite(col["point"])) and np.all(np.isfinite(col["depth"])), "non-finite patch point or depth")
+    expect(np.allclose(np.linalg.norm(col["normal"], axis=1), 1.0, rtol=0, atol=1e-12), "patch normals are not unit")
+    a, b, plane = col["body_a"], col["body_b"], col["plane"]
+    expect(np.all((plane >= 0) == (b == -1)), "a patch has a plane index exactly when body_b is -1")
+    expect(np.all((plane >= -1) & (plane < len(planes))), "patch plane index out of range")
+    expect(np.all((a >= 0) & (a < B)) and np.all((b >= -1) & (b < B)), "patch body index out of range")
+    expect(np.all((b == -1) | (a <= b)), "body_a must be the body with the lower index")
+    self_contact = a == b
+    expect(all(kinds[i] == "deformable" for i in a[self_contact]), "a rigid or static body in contact with itself")
+    plane_case = case_names.index("particle_plane") if "particle_plane" in case_names else None
+    if plane_case is not None:
+        expect(np.array_equal(case == plane_case, plane >= 0), "particle_plane case exactly for body-plane patches")
+    expect(np.all(col["contacts"] >= 1), "a patch without contacts")
+    by_case, unvalidated = obs["patches_by_case/value"][()], obs["unvalidated_patches/value"][()]
+    expect(by_case.shape == (T, len(case_names)), "patches_by_case has another number of cases than case_names")
+    c = f["contacts"]
+    c_off, c_cnt = c["offset"][()], c["count"][()]
+    c_a, c_b, c_plane = c["particle_a"][()], c["particle_b"][()], c["plane"][()]
+    for t in range(T):
+        s, e = offset[t], offset[t] + count[t]
+        expect(np.all(exists[t, a[s:e]]) and np.all(exists[t, b[s:e][b[s:e] >= 0]]),
+               f"frame {t}: a patch of a body that does not exist")
+        expect(np.array_equal(np.bincount(case[s:e], minlength=len(case_names)), by_case[t]),
+               f"frame {t}: patches_by_case != the patches' cases")
+        expect(np.count_nonzero(col["validated"][s:e] == 0) == unvalidated[t],
+               f"frame {t}: unvalidated_patches != the patches not validated")
+        # the patches hold every contact the narrow phase had: the touching ones of /contacts and the
+        # speculative ones (gaps) that /contacts leaves out
+        expect(col["contacts"][s:e].sum() >= c_cnt[t], f"frame {t}: fewer contacts in patches than in /contacts")
+        # every touching contact's body pair (or body and plane) has a patch
+        keys = set(zip(a[s:e].tolist(), b[s:e].tolist(), plane[s:e].tolist()))
+        cs, ce = c_off[t], c_off[t] + c_cnt[t]
+        body_a = particle_body[t, c_a[cs:ce]]
+        body_b = np.where(c_b[cs:ce] >= 0, particle_body[t, np.maximum(c_b[cs:ce], 0)], -1)
+        lo = np.where(body_b >= 0, np.minimum(body_a, body_b), body_a)
+        hi = np.where(body_b >= 0, np.maximum(body_a, body_b), -1)
+        for key in set(zip(lo.tolist(), hi.tolist(), c_plane[cs:ce].tolist())):
+            expect(key in keys, f"frame {t}: contacts of bodies/plane {key} but no patch")
+    return offset, count
 
 
 def free_flight(path):
@@ -258,6 +339,18 @@ def self_test(path):
         "body row of a missing body": lambda f: f["particles/bodies/created"].__setitem__(-1, 10 ** 9),
         "a body before it exists": lambda f: f["particles/bodies/position/value"].__setitem__((0, -1), np.zeros(3)),
         "breakage events lost": lambda f: f.__delitem__("breakage"),
+        "patch normal not unit": lambda f: f["patches/normal"].__setitem__(0, f["patches/normal"][0] * 1.001),
+        "patch offsets": lambda f: f["patches/offset"].__setitem__(-1, f["patches/offset"][-1] + 1),
+        "patch case unknown": lambda f: f["patches/case"].__setitem__(0, len(f["patches/case"].attrs["case_names"])),
+        "patch source unknown": lambda f: f["patches/source"].__setitem__(0, -1),
+        "patch body out of range": lambda f: f["patches/body_a"].__setitem__(0, f["particles/bodies/created"].shape[0]),
+        "patch of a body not created yet": lambda f: f["patches/body_a"].__setitem__(
+            0, int(np.argmax(f["particles/bodies/created"][()]))),
+        "body pair patch with a plane": lambda f: f["patches/plane"].__setitem__(
+            int(np.argmax(f["patches/body_b"][()] >= 0)), 0),
+        "patch contacts lost": lambda f: f["patches/contacts"].__setitem__(
+            slice(None), np.ones(f["patches/contacts"].shape, dtype=np.int32)),
+        "patch depth not finite": lambda f: f["patches/depth"].__setitem__(0, np.nan),
     }
     tmp = tempfile.mkdtemp()
     try:
