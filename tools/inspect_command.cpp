@@ -70,6 +70,8 @@ int xdmf(const std::string& path) {
   f.particles = sum->particles;
   f.time = sum->time;
   f.step = sum->step;
+  f.patchOffset = sum->patchOffset;
+  f.patchCount = sum->patchCount;
   if (auto ok = writeXdmf(f); !ok) return fail(ok.error());
   std::printf("%s\n", sidecarPath(path).c_str());
   return 0;

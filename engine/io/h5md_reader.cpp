@@ -147,6 +147,10 @@ Result<TrajectorySummary> H5mdReader::summary() const {
     s.kinetic = readAll<double>(f, "observables/kinetic_energy/value", H5T_NATIVE_DOUBLE);
     s.potential = readAll<double>(f, "observables/potential_energy/value", H5T_NATIVE_DOUBLE);
     s.total = readAll<double>(f, "observables/total_energy/value", H5T_NATIVE_DOUBLE);
+    if (H5Lexists(f, "patches", H5P_DEFAULT) > 0) {
+      s.patchOffset = readAll<std::int64_t>(f, "patches/offset", H5T_NATIVE_INT64);
+      s.patchCount = readAll<std::int64_t>(f, "patches/count", H5T_NATIVE_INT64);
+    }
   } catch (const ReadFailure& e) {
     return Error{impl_->path, 0, 0, e.what};
   }

@@ -25,6 +25,9 @@ struct TrajectorySummary {
   std::vector<double> potential;     ///< [T] [J]
   std::vector<double> total;         ///< [T] [J]
   std::vector<std::string> bodyNames;  ///< [B]
+  /// Per frame: its first row and number of rows in /patches, [T] each (empty when the file has no /patches).
+  std::vector<std::int64_t> patchOffset;
+  std::vector<std::int64_t> patchCount;
 };
 
 class H5mdReader {

@@ -701,6 +701,9 @@ Status H5mdWriter::writeFrame(const World& world) {
   }
   times_.push_back(time);
   steps_.push_back(step);
+  const auto patches = static_cast<std::int64_t>(world.patches().patches.size());
+  patchOffsets_.push_back(static_cast<std::int64_t>(m.patches.bodyA.rows()) - patches);
+  patchCounts_.push_back(patches);
   return okStatus();
 }
 
@@ -819,6 +822,8 @@ Status H5mdWriter::writeSidecar() const {
   f.particles = impl_ ? impl_->particles : 0;
   f.time = times_;
   f.step = steps_;
+  f.patchOffset = patchOffsets_;
+  f.patchCount = patchCounts_;
   return writeXdmf(f);
 }
 

@@ -52,6 +52,8 @@ class H5mdWriter {
   std::string path_;
   std::vector<double> times_;
   std::vector<std::int64_t> steps_;
+  std::vector<std::int64_t> patchOffsets_;  // per frame: its first row in /patches
+  std::vector<std::int64_t> patchCounts_;   // per frame: its patches
 };
 
 }  // namespace volpar

@@ -1,10 +1,65 @@
 #include "engine/io/xdmf_writer.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <ostream>
 
 namespace volpar {
+
+namespace {
+
+/// Rows `first` .. `first` + `count` - 1 of an HDF5 dataset [rows] or [rows, width] as a HyperSlab item.
+void rowSlab(std::ostream& x, const std::string& h5, const char* dataset, const char* type, int precision,
+             std::int64_t rows, std::int64_t first, std::int64_t count, int width) {
+  if (width > 1) {
+    x << "    <DataItem ItemType=\"HyperSlab\" Dimensions=\"" << count << " " << width << "\">\n"
+      << "     <DataItem Dimensions=\"3 2\" Format=\"XML\" NumberType=\"Int\">" << first << " 0  1 1  " << count
+      << " " << width << "</DataItem>\n"
+      << "     <DataItem Dimensions=\"" << rows << " " << width << "\"";
+  } else {
+    x << "    <DataItem ItemType=\"HyperSlab\" Dimensions=\"" << count << "\">\n"
+      << "     <DataItem Dimensions=\"3 1\" Format=\"XML\" NumberType=\"Int\">" << first << " 1 " << count
+      << "</DataItem>\n"
+      << "     <DataItem Dimensions=\"" << rows << "\"";
+  }
+  x << " NumberType=\"" << type << "\" Precision=\"" << precision << "\" Format=\"HDF\">" << h5 << ":/patches/"
+    << dataset << "</DataItem>\n    </DataItem>\n";
+}
+
+/// The "patches" temporal collection: one Polyvertex grid per frame that has patches.
+void writePatchGrids(std::ostream& x, const XdmfFrames& f, const std::string& h5) {
+  const std::size_t t = f.time.size();
+  std::int64_t rows = 0;
+  for (std::size_t i = 0; i < t; ++i) rows = std::max(rows, f.patchOffset[i] + f.patchCount[i]);
+  x << " <Grid Name=\"patches\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  for (std::size_t i = 0; i < t; ++i) {
+    const std::int64_t first = f.patchOffset[i], n = f.patchCount[i];
+    if (n <= 0) continue;
+    x << "  <Grid Name=\"patches_step_" << f.step[i] << "\" GridType=\"Uniform\">\n"
+      << "   <Time Value=\"" << f.time[i] << "\"/>\n"
+      << "   <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\" NodesPerElement=\"1\"/>\n"
+      << "   <Geometry GeometryType=\"XYZ\">\n";
+    rowSlab(x, h5, "point", "Float", 8, rows, first, n, 3);
+    x << "   </Geometry>\n"
+      << "   <Attribute Name=\"normal\" AttributeType=\"Vector\" Center=\"Node\">\n";
+    rowSlab(x, h5, "normal", "Float", 8, rows, first, n, 3);
+    x << "   </Attribute>\n"
+      << "   <Attribute Name=\"depth\" AttributeType=\"Scalar\" Center=\"Node\">\n";
+    rowSlab(x, h5, "depth", "Float", 8, rows, first, n, 1);
+    x << "   </Attribute>\n"
+      << "   <Attribute Name=\"case\" AttributeType=\"Scalar\" Center=\"Node\">\n";
+    rowSlab(x, h5, "case", "Int", 4, rows, first, n, 1);
+    x << "   </Attribute>\n"
+      << "   <Attribute Name=\"validated\" AttributeType=\"Scalar\" Center=\"Node\">\n";
+    rowSlab(x, h5, "validated", "Char", 1, rows, first, n, 1);
+    x << "   </Attribute>\n  </Grid>\n";
+  }
+  x << " </Grid>\n";
+}
+
+}  // namespace
 
 std::string sidecarPath(const std::string& h5Path) {
   std::filesystem::path p(h5Path);
@@ -55,7 +110,9 @@ Status writeXdmf(const XdmfFrames& f) {
         << ":/particles/all/radius</DataItem>\n"
         << "   </Attribute>\n  </Grid>\n";
     }
-    x << " </Grid>\n</Domain>\n</Xdmf>\n";
+    x << " </Grid>\n";
+    if (f.patchOffset.size() == t && f.patchCount.size() == t) writePatchGrids(x, f, h5);
+    x << "</Domain>\n</Xdmf>\n";
     if (!x) return Error{tmp, 0, 0, "failed writing the XDMF sidecar"};
   }
   std::error_code ec;

@@ -1,7 +1,10 @@
 #pragma once
 // XDMF sidecar for ParaView (docs/trajectory-format.md). XDMF2 flavour read by ParaView's XDMFReader:
-// one temporal collection of Polyvertex grids whose geometry is a HyperSlab of
-// /particles/all/position/value. Named `<trajectory>.xdmf2` so ParaView picks the right reader.
+// a temporal collection "particles" of Polyvertex grids whose geometry is a HyperSlab of
+// /particles/all/position/value, and a temporal collection "patches" whose grids are the rows of
+// /patches of a frame (points, with normal, depth, case and validated). A frame without patches has no
+// patch grid (an empty HyperSlab is not valid XDMF): at its time the reader's "patches" block is empty.
+// Named `<trajectory>.xdmf2` so ParaView picks the right reader.
 
 #include <cstdint>
 #include <string>
@@ -16,6 +19,10 @@ struct XdmfFrames {
   std::size_t particles = 0;
   std::vector<double> time;           ///< [T]
   std::vector<std::int64_t> step;     ///< [T]
+  /// Per frame: its first row and number of rows in /patches, [T] each. Empty for a trajectory without
+  /// /patches (no "patches" collection is written then).
+  std::vector<std::int64_t> patchOffset;
+  std::vector<std::int64_t> patchCount;
 };
 
 /// `<trajectory without .h5>.xdmf2`

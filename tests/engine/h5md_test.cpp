@@ -310,6 +310,54 @@ TEST(H5md, PatchRecordsOfEveryFrameReadBackBitForBit) {
   EXPECT_EQ(readStringsAttr(f, "/patches/source", "source_names"), sourceNames);
   H5Fclose(f);
 
+  // the sidecar: a patch grid for each frame with patches (and none for the others)
+  std::ifstream x(sidecarPath(path));
+  const std::string xml((std::istreambuf_iterator<char>(x)), std::istreambuf_iterator<char>());
+  for (std::size_t t = 0; t < frames; ++t) {
+    const std::string grid = "<Grid Name=\"patches_step_" + std::to_string(kEvery * t) + "\"";
+    EXPECT_EQ(xml.find(grid) != std::string::npos, !expected[t].empty()) << grid;
+  }
+}
+
+TEST(H5md, SidecarSkipsThePatchGridOfFramesWithoutPatches) {
+  XdmfFrames frames;
+  frames.h5Path = test::tempDir() + "/run.h5";
+  frames.particles = 4;
+  frames.time = {0.0, 0.5, 1.0, 1.5};
+  frames.step = {0, 50, 100, 150};
+  frames.patchOffset = {0, 0, 3, 3};
+  frames.patchCount = {0, 3, 0, 2};
+  ASSERT_TRUE(writeXdmf(frames).ok());
+  std::ifstream in(sidecarPath(frames.h5Path));
+  const std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // the particles' collection is unchanged: every frame
+  for (const char* grid : {"<Grid Name=\"step_0\"", "<Grid Name=\"step_50\"", "<Grid Name=\"step_100\"",
+                           "<Grid Name=\"step_150\""})
+    EXPECT_NE(xml.find(grid), std::string::npos) << grid;
+  // patches: frames 1 and 3 only, rows 0..2 and 3..4 of the 5
+  EXPECT_NE(xml.find("<Grid Name=\"patches\" GridType=\"Collection\" CollectionType=\"Temporal\">"), std::string::npos);
+  EXPECT_EQ(xml.find("patches_step_0\""), std::string::npos);
+  EXPECT_EQ(xml.find("patches_step_100\""), std::string::npos);
+  const std::size_t one = xml.find("<Grid Name=\"patches_step_50\"");
+  const std::size_t three = xml.find("<Grid Name=\"patches_step_150\"");
+  ASSERT_NE(one, std::string::npos);
+  ASSERT_NE(three, std::string::npos);
+  EXPECT_NE(xml.find("NumberOfElements=\"3\"", one), std::string::npos);
+  EXPECT_NE(xml.find(">0 0  1 1  3 3</DataItem>", one), std::string::npos);
+  EXPECT_NE(xml.find(">3 0  1 1  2 3</DataItem>", three), std::string::npos);
+  EXPECT_NE(xml.find(">3 1 2</DataItem>", three), std::string::npos);
+  EXPECT_NE(xml.find("Dimensions=\"5 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">run.h5:/patches/normal"),
+            std::string::npos);
+  // no empty HyperSlab anywhere (XDMF2 cannot allocate one); tags balanced
+  EXPECT_EQ(xml.find("Dimensions=\"0"), std::string::npos);
+  const auto occurrences = [&](const std::string& s) {
+    std::size_t n = 0;
+    for (std::size_t at = xml.find(s); at != std::string::npos; at = xml.find(s, at + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(occurrences("<Grid "), occurrences("</Grid>"));
+  EXPECT_EQ(occurrences("<DataItem "), occurrences("</DataItem>"));
+  EXPECT_EQ(occurrences("<Attribute "), occurrences("</Attribute>"));
 }
 
 /// Starts `volpar run` on a long scene with extra arguments; after `waitMs` (if > 0) sends `signal`.

@@ -207,7 +207,7 @@ def validate(path, scene=None, frames=None):
                    f"frame {t}: plane contact depth != r - height")
 
     # /patches: the narrow phase's contact patches, ragged per-frame arrays
-    check_patches(f, step, exists, kinds, body, planes)
+    patch_offset, patch_count = check_patches(f, step, exists, kinds, body, planes)
 
     # /parameters
     text = par["scene"][()]
@@ -219,16 +219,37 @@ def validate(path, scene=None, frames=None):
     planes = par["planes"][()]
     expect(planes.ndim == 2 and planes.shape[1] == 4, "planes must be [n, 4]")
 
-    # the XDMF sidecar, if present
+    # the XDMF sidecar, if present: the particles of every frame, the patches of every frame that has some
     side = os.path.splitext(path)[0] + ".xdmf2"
     if os.path.exists(side):
-        grids = ET.parse(side).getroot().findall("./Domain/Grid/Grid")
+        domain = ET.parse(side).getroot().find("Domain")
+        collections = {g.get("Name"): g for g in domain.findall("Grid")}
+        expect(set(collections) == {"particles", "patches"}, f"sidecar collections {sorted(collections)}")
+        grids = collections["particles"].findall("Grid")
         expect(len(grids) == T, f"sidecar has {len(grids)} frames, file has {T}")
         for i, grid in enumerate(grids):
             expect(np.isclose(float(grid.find("Time").get("Value")), time[i], rtol=1e-15), f"sidecar time {i}")
             items = grid.find("Geometry/DataItem").findall("DataItem")
             expect(items[1].get("Dimensions") == f"{T} {P} 3", f"sidecar dimensions of frame {i}")
             expect(items[0].text.split()[0] == str(i), f"sidecar hyperslab of frame {i}")
+        grids = collections["patches"].findall("Grid")
+        frames_with_patches = np.nonzero(patch_count > 0)[0]
+        expect(len(grids) == len(frames_with_patches),
+               f"sidecar has {len(grids)} patch grids, the file {len(frames_with_patches)} frames with patches")
+        rows = int(patch_count.sum())
+        for i, grid in zip(frames_with_patches, grids):
+            s, n = int(patch_offset[i]), int(patch_count[i])
+            expect(np.isclose(float(grid.find("Time").get("Value")), time[i], rtol=1e-15), f"sidecar patch time {i}")
+            expect(grid.find("Topology").get("NumberOfElements") == str(n), f"sidecar patch count of frame {i}")
+            slabs = [grid.find("Geometry/DataItem")] + [a.find("DataItem") for a in grid.findall("Attribute")]
+            names = [a.get("Name") for a in grid.findall("Attribute")]
+            expect(names == ["normal", "depth", "case", "validated"], f"sidecar patch attributes {names}")
+            for slab in slabs:
+                start, data = slab.findall("DataItem")
+                width = data.get("Dimensions").split()[1:]
+                expect(data.get("Dimensions").split()[0] == str(rows), f"sidecar patch rows of frame {i}")
+                expect(start.text.split() == [str(s)] + ["0"] * len(width) + ["1"] * (1 + len(width)) + [str(n)] + width,
+                       f"sidecar patch hyperslab of frame {i}")
     f.close()
     return T, P, B
 
