@@ -14,8 +14,10 @@
 #include <span>
 #include <vector>
 
+#include "collision/contact_patch.hpp"
 #include "collision/normal_cache.hpp"
 #include "collision/particle_contacts.hpp"
+#include "collision/plane_solver.hpp"
 #include "collision/separating_plane.hpp"
 #include "engine/core/body_store.hpp"
 #include "engine/core/particle_store.hpp"
@@ -23,61 +25,6 @@
 #include "engine/core/thread_pool.hpp"
 
 namespace volpar {
-
-struct ContactPatch {
-  BodyId a;                       ///< as in its ContactGroup
-  BodyId b;
-  PlaneId plane;
-  Vec3 normal = Vec3::UnitZ();    ///< unit, from A towards B (into the plane), world
-  Vec3 point = Vec3::Zero();      ///< the deepest contact point; the plane passes through it [m]
-  double depth = 0.0;             ///< largest overlap along the normal [m]
-  double margin = 0.0;            ///< validation margin of the chosen normal [m] (negative: unvalidated), as
-                                  ///< computed: a reused patch keeps the margin of the step it was made in
-  PlaneCase planeCase = PlaneCase::VertexFace11;
-  NormalSource source = NormalSource::CentreLine;
-  bool validated = false;
-  bool lookAhead = false;         ///< a look-ahead decided the plane (the configuration it predicted gave the normal)
-  std::uint32_t first = 0;        ///< range in PatchSet::contacts
-  std::uint32_t count = 0;
-};
-
-struct NarrowPhaseStats {
-  std::size_t patches = 0;
-  std::array<std::size_t, kPlaneCaseCount> byCase{};
-  std::size_t candidates = 0;     ///< candidate normals tried
-  std::size_t lookAheads = 0;     ///< look-aheads run
-  std::size_t unvalidated = 0;    ///< patches without a validated candidate
-  std::size_t reused = 0;         ///< patches taken over from an earlier step (see NarrowPhase)
-  NarrowPhaseStats& operator+=(const NarrowPhaseStats& o) {
-    patches += o.patches;
-    for (std::size_t k = 0; k < kPlaneCaseCount; ++k) byCase[k] += o.byCase[k];
-    candidates += o.candidates;
-    lookAheads += o.lookAheads;
-    unvalidated += o.unvalidated;
-    reused += o.reused;
-    return *this;
-  }
-};
-
-struct PatchSet {
-  std::vector<ContactPatch> patches;
-  std::vector<std::uint32_t> contacts;       ///< indices into ContactSet::contacts, grouped by patch
-  /// Per contact of ContactSet (same order): overlap of the two particles' extents along the patch normal,
-  /// r_a + r_b - n . (x_b - x_a) [m] (plane contacts: the depth). A side's particle tops form a flat face.
-  std::vector<double> depthAlongNormal;
-  std::vector<std::uint32_t> patchOfContact; ///< per contact of ContactSet: its patch
-  NarrowPhaseStats stats;
-};
-
-/// Read-only view of what the narrow phase needs from the world.
-struct NarrowPhaseInput {
-  const ParticleStore* particles = nullptr;
-  const BodyStore* bodies = nullptr;
-  const NormalCache* normals = nullptr;
-  const ContactFinder* finder = nullptr;  ///< connector adjacency
-  std::span<const Plane> planes;
-  double dt = 0.0;                        ///< [s], scales the look-ahead
-};
 
 /// Patches and their separating planes for every contact group.
 ///
@@ -101,18 +48,6 @@ class NarrowPhase {
   void clearCache();
 
  private:
-  struct Side {
-    std::vector<ParticleId> particles;  // unique, ascending
-    Vec3 centroid = Vec3::Zero();
-    Vec3 line = Vec3::Zero();   // best-fit direction (unit) when >= 2 particles
-    Vec3 face = Vec3::Zero();   // best-fit plane normal (unit) when not collinear
-    bool collinear = true;
-    double meanRadius = 0.0;
-  };
-  struct Candidate {
-    Vec3 normal;
-    NormalSource source;
-  };
   /// What identifies a group from one step to the next: kind 0 = body pair (a, b), 1 = body a and plane b.
   struct GroupKey {
     std::uint32_t kind = 0, a = 0, b = 0;
@@ -163,22 +98,7 @@ class NarrowPhase {
     Output* o = nullptr;  // the chunk being worked on
     // scratch, reused across patches and steps
     std::vector<std::uint32_t> parent, order;
-    std::vector<Vec3> pointsA, pointsB;
-    Side sideA, sideB;
-    std::vector<Candidate> candidates;
-    std::vector<ParticleId> ringA, ringB, seedsA, seedsB, frontier, next;
-    /// A validation ring's particle, gathered once for all candidates: centre, radius, world normal
-    /// (zero for interior particles), and whether it is one of the patch's own (always counted).
-    struct RingPoint {
-      Vec3 x, n;
-      double r;
-      bool own;
-    };
-    std::vector<RingPoint> ringPointsA, ringPointsB;
-    std::vector<std::uint32_t> mark;
-    std::uint32_t stamp = 0;
-    std::vector<ParticleId> aheadA, aheadB;
-    std::vector<Vec3> aheadPosA, aheadPosB;
+    PlaneSolver solver;
   };
 
   [[nodiscard]] static bool cacheable(const NarrowPhaseInput& in, const ContactGroup& g);
@@ -193,28 +113,10 @@ class NarrowPhase {
                 Worker& w) const;
   void makePatches(const NarrowPhaseInput& in, const ContactSet& contacts, const ContactGroup& g, Worker& w,
                    PatchSet& out) const;
-  void solvePatch(const NarrowPhaseInput& in, const ContactSet& contacts, ContactPatch& patch, Worker& w,
-                  PatchSet& out) const;
-  void describeSide(const std::vector<Vec3>& points, double meanRadius, Side& side) const;
-  void addCandidates(const NarrowPhaseInput& in, const Side& a, const Side& b, const std::vector<Vec3>& pointsA,
-                     const std::vector<Vec3>& pointsB, const Vec3& contactDifference, PlaneCase c, bool bIsPlane,
-                     const Plane* plane, Worker& w) const;
-  /// k-ring neighbourhood of `seeds` (seeds included) into `out`.
-  static void ring(const NarrowPhaseInput& in, std::span<const ParticleId> seeds, int k, std::vector<ParticleId>& out,
-                   Worker& w);
-  bool lookAhead(const NarrowPhaseInput& in, ParticleId a, ParticleId b, std::vector<Vec3>& pointsA,
-                 std::vector<Vec3>& pointsB, Vec3& contactDifference, Worker& w) const;
-  [[nodiscard]] static Vec3 worldNormal(const NarrowPhaseInput& in, ParticleId p);
-  [[nodiscard]] static PlaneCase classify(const NarrowPhaseInput& in, const Side& a, const Side& b);
-
   PlaneSettings settings_;
   std::vector<Worker> workers_;
   Cache cache_;                        // what the last run computed or reused, for the next
   std::vector<Output> chunks_;
 };
-
-/// World-frame outward normal of a surface particle from the cache (zero for interior particles).
-[[nodiscard]] Vec3 cachedWorldNormal(const ParticleStore& particles, const BodyStore& bodies, const NormalCache& normals,
-                                     ParticleId p);
 
 }  // namespace volpar

@@ -3,8 +3,14 @@
 // (ParticleStore::normalIndex) into this list; interior particles hold -1. Normals are stored in the body
 // frame, so moving a body costs nothing: the principal frame of rigid and static bodies, and for deformable
 // bodies the frame of their rest shape, which follows the body's best-fit rotation (shape matching); where
-// a deformable region strains, its normals are recomputed. A zero normal means the particle is on the
-// surface but has no preferred direction (a lone particle).
+// a deformable region bends or strains, its normals are recomputed. An entry also holds the faces the
+// particle lies on (an edge's two, a corner's three, a sheet's two sides and its rim): the builders' exact
+// face normals, or estimated ones (normal_estimation.hpp). How to read an entry depends on the particle's
+// flags (ParticleFlag): see facingNormal().
+//
+// Entries are recycled: a particle keeps its entry while it is on the surface, rewritten in place when its
+// normal is recomputed or its body splits, and gives it back when it becomes interior. The list never holds
+// more entries than the most surface particles there have been at once.
 
 #include <algorithm>
 #include <array>
@@ -12,6 +18,7 @@
 #include <span>
 #include <vector>
 
+#include "collision/normal_estimation.hpp"
 #include "engine/core/body_store.hpp"
 #include "engine/core/particle_store.hpp"
 #include "engine/core/types.hpp"
@@ -22,27 +29,40 @@ class ContactFinder;
 
 class NormalCache {
  public:
-  /// Appends a normal, and the exact normals of the shape's faces it averages (an edge particle's two
-  /// faces, a corner's three; none for estimated normals), and returns its index.
+  /// Stores a normal and the faces behind it (up to three) in a free entry; returns its index.
   std::int32_t add(const Vec3& normal, std::span<const Vec3> faces = {}) {
-    normals_.push_back(normal);
-    Faces f{};
+    std::int32_t index;
+    if (!free_.empty()) {
+      index = free_.back();
+      free_.pop_back();
+    } else {
+      index = static_cast<std::int32_t>(normals_.size());
+      normals_.emplace_back();
+      faces_.emplace_back();
+    }
+    set(index, normal, faces);
+    return index;
+  }
+  /// Rewrites entry `index`.
+  void set(std::int32_t index, const Vec3& normal, std::span<const Vec3> faces = {}) {
+    normals_[static_cast<std::size_t>(index)] = normal;
+    Faces& f = faces_[static_cast<std::size_t>(index)];
     f.count = static_cast<std::uint8_t>(std::min<std::size_t>(faces.size(), 3));
     for (std::size_t k = 0; k < f.count; ++k) f.normal[k] = faces[k];
-    faces_.push_back(f);
-    return static_cast<std::int32_t>(normals_.size() - 1);
   }
+  /// Gives entry `index` back (its particle became interior).
+  void release(std::int32_t index) { free_.push_back(index); }
+
   [[nodiscard]] const Vec3& operator[](std::int32_t index) const { return normals_[static_cast<std::size_t>(index)]; }
   /// The face normals behind entry `index` (possibly none).
   [[nodiscard]] std::span<const Vec3> faces(std::int32_t index) const {
     const Faces& f = faces_[static_cast<std::size_t>(index)];
     return {f.normal.data(), f.count};
   }
-  void set(std::int32_t index, const Vec3& normal) {
-    normals_[static_cast<std::size_t>(index)] = normal;
-    faces_[static_cast<std::size_t>(index)].count = 0;  // recomputed normals are estimates
-  }
+  /// Entries allocated (in use or free).
   [[nodiscard]] std::size_t size() const { return normals_.size(); }
+  /// Entries in use.
+  [[nodiscard]] std::size_t used() const { return normals_.size() - free_.size(); }
 
  private:
   struct Faces {
@@ -51,26 +71,61 @@ class NormalCache {
   };
   std::vector<Vec3> normals_;
   std::vector<Faces> faces_;
+  std::vector<std::int32_t> free_;
 };
 
-/// Outward normals estimated from the connector neighbourhood: for particle i, the unit vector from the
-/// mean of its neighbours to i. A particle is on the surface when that offset exceeds 15 % of its mean
-/// neighbour distance, or when it has fewer than 4 neighbours; interior particles get (surface = 0, zero
-/// normal). positions [P], connectors as index pairs.
-struct EstimatedNormals {
-  std::vector<Vec3> normal;           ///< [P]
-  std::vector<std::uint8_t> surface;  ///< [P]
-};
-[[nodiscard]] EstimatedNormals estimateNormals(std::span<const Vec3> positions,
-                                               std::span<const std::array<std::uint32_t, 2>> connectors);
+/// World-frame outward normal of a surface particle from the cache (zero for interior particles).
+[[nodiscard]] inline Vec3 cachedWorldNormal(const ParticleStore& particles, const BodyStore& bodies,
+                                            const NormalCache& normals, ParticleId p) {
+  const std::int32_t k = particles.normalIndex[p.index()];
+  if (k < 0) return Vec3::Zero();
+  return bodies.state[particles.body[p.index()].index()].orientation * normals[k];
+}
 
-/// Partial recomputation (DESIGN section 5), for breakage and deformation: re-estimates the normals of
-/// exactly the listed particles from their current connector neighbourhood (same rule as estimateNormals),
-/// in the frame the cache keeps for their body (principal frame for rigid and static bodies, world for
-/// deformable ones). A particle that became a surface particle gets a cache entry; one that became interior
-/// loses its surface flag. The caller chooses the particles (e.g. the k-ring around broken connectors), so
-/// the cost is bounded by that neighbourhood, never by the body. Returns how many were recomputed.
-std::size_t recomputeNormals(std::span<const ParticleId> ids, ParticleStore& particles, const BodyStore& bodies,
-                             const ContactFinder& adjacency, NormalCache& cache);
+/// The outward normal of a surface particle as seen from direction `towards` (unit, from the particle
+/// towards what it touches), in the frame of `normal` and `faces`: a sheet shows the side (or rim) facing
+/// that way, a chain the direction across it, a lone particle `towards` itself; every other particle its
+/// normal. Zero for interior particles (flags without kParticleSurface).
+[[nodiscard]] inline Vec3 facingNormal(std::uint8_t flags, const Vec3& normal, std::span<const Vec3> faces,
+                                       const Vec3& towards) {
+  if (!(flags & kParticleSurface)) return Vec3::Zero();
+  if (flags & kParticleSheet) {
+    Vec3 best = normal;
+    double top = -2.0;
+    for (const Vec3& f : faces)
+      if (const double d = f.dot(towards); d > top) {
+        top = d;
+        best = f;
+      }
+    return best;
+  }
+  if (flags & kParticleLine) {
+    const Vec3 across = towards - towards.dot(normal) * normal;
+    const double n = across.norm();
+    return n > 1e-12 ? Vec3(across / n) : towards;
+  }
+  if (normal.isZero()) return towards;
+  return normal;
+}
+
+/// Partial recomputation (DESIGN section 5), for breakage and deformation: re-estimates exactly the listed
+/// particles from their current connector neighbourhood (normal_estimation.hpp), in the frame the cache
+/// keeps for their body (principal frame for rigid and static bodies; for deformable ones, the world
+/// frame turned into their rest frame by the body's orientation), and sets their flags. `opened` marks the
+/// particles that lost a connector (they lie on a crack face). A particle that became a surface particle
+/// gets an entry (a recycled one where there is one); one that became interior gives its entry back. The
+/// caller chooses the particles (e.g. those within two connectors of a break), so the cost is bounded by
+/// that neighbourhood, never by the body. Keeps its scratch: once grown, recomputing allocates nothing.
+class NormalUpdater {
+ public:
+  /// Recomputes `ids`; returns how many.
+  std::size_t recompute(std::span<const ParticleId> ids, ParticleStore& particles, const BodyStore& bodies,
+                        const ContactFinder& adjacency, std::span<const std::uint8_t> opened, NormalCache& cache);
+
+ private:
+  SurfaceEstimator estimator_;
+  std::vector<ParticleId> rigid_, deformable_;
+  std::vector<SurfaceEstimate> out_;
+};
 
 }  // namespace volpar

@@ -91,6 +91,10 @@ class ContactFinder {
 
   /// Whether particles a and b (of one body) are joined by an unbroken connector.
   [[nodiscard]] bool connected(ParticleId a, ParticleId b) const;
+  /// The connector adjacency as compressed rows over all particles: the neighbours of particle i are
+  /// adjacencyList()[adjacencyStart()[i] .. adjacencyStart()[i + 1]) (valid after find() or refreshAdjacency()).
+  [[nodiscard]] std::span<const std::uint32_t> adjacencyStart() const { return adjacencyStart_; }
+  [[nodiscard]] std::span<const ParticleId> adjacencyList() const { return adjacency_; }
   /// The particles joined to `p` by unbroken connectors, ascending (valid after find()).
   [[nodiscard]] std::span<const ParticleId> neighbours(ParticleId p) const {
     if (p.index() + 1 >= adjacencyStart_.size()) return {};

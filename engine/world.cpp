@@ -125,14 +125,12 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     particles_.invMass[p] = def.kind == BodyKind::Static || pinned ? 0.0 : 1.0 / masses[i];
     particles_.body[p] = id;
     particles_.local[p] = toPrincipal * (cloud.positions[i] - mp.centre);
-    if (cloud.surface[i]) {
-      particles_.flags[p] |= kParticleSurface;
-      const std::uint8_t features = i < cloud.features.size() ? cloud.features[i] : 0;
-      if (features == 2) particles_.flags[p] |= kParticleEdge;
-      if (features >= 3) particles_.flags[p] |= kParticleCorner;
+    if (cloud.flags[i]) {
+      particles_.flags[p] = static_cast<std::uint8_t>(cloud.flags[i] | kParticleSurface);
       // in the body's principal frame (for deformable bodies: the frame of their rest shape, which follows the
       // body's best-fit rotation)
       const Quat toCache = toPrincipal;
+      const std::uint8_t features = i < cloud.features.size() ? cloud.features[i] : 0;
       std::array<Vec3, 3> faces{};
       std::size_t nf = 0;
       if (i < cloud.featureNormals.size())
@@ -147,7 +145,11 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     const double rest = (cloud.positions[c[1]] - cloud.positions[c[0]]).norm();
     const ConnectorId cid = connectors_.add(a, b, rest, def.connectors);
     bodyConnectors_.back().push_back(cid);
-    if (def.kind == BodyKind::Deformable) deformableConnectors_.push_back(cid);
+    connectorDirection_.resize(connectors_.size(), Vec3::Zero());
+    if (def.kind == BodyKind::Deformable) {
+      deformableConnectors_.push_back(cid);
+      connectorDirection_[cid.index()] = (particles_.local[b.index()] - particles_.local[a.index()]).normalized();
+    }
   }
   bodies_.add(state, std::move(info));
   rodForces_.emplace_back();
@@ -174,6 +176,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     }
   }
   for (std::size_t i = 0; i < n; ++i) maxRadius_ = std::max(maxRadius_, cloud.radii[i]);
+  opened_.resize(particles_.size(), 0);
   broadphase_.setMargin(settings_.broadphaseMargin > 0.0 ? settings_.broadphaseMargin : maxRadius_);
   broadphase_.addBody(id, bodyBoxes_[id.index()], def.kind == BodyKind::Static);
   contactFinder_.addBody(id, particles_, bodies_);
@@ -251,6 +254,7 @@ void World::applyBreakage() {
       const std::size_t c = rods[r].index();
       if (!(std::abs(rodForceScratch_[r]) > connectors_.breakLimit[c])) continue;
       connectors_.broken[c] = 1;
+      opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
       breakEvents_.push_back({stepIndex_ + 1, rods[r], connectors_.a[c], connectors_.b[c], id, ConnectorKind::Rod, rodForceScratch_[r]});
       seeds_.push_back(connectors_.a[c]);
       seeds_.push_back(connectors_.b[c]);
@@ -283,6 +287,7 @@ void World::applyBreakage() {
     }
     if (!(value > connectors_.breakLimit[c])) continue;
     connectors_.broken[c] = 1;
+    opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
     anyBroken = true;
     breakEvents_.push_back({stepIndex_ + 1, cid, connectors_.a[c], connectors_.b[c], particles_.body[connectors_.a[c].index()],
                             connectors_.kind[c], value});
@@ -291,30 +296,57 @@ void World::applyBreakage() {
   }
   stats_.connectorsBroken = breakEvents_.size();
   if (anyBroken) contactFinder_.refreshAdjacency(particles_, connectors_);
-  // deformable regions strained past the threshold
+  // the faces a break opened: the particles within two connectors of it (their neighbourhoods changed)
+  if (!seeds_.empty()) recomputeNormalsAround(seeds_, 2);
+  // deformable regions that bent or stretched
+  seedDeformedNormals();
+}
+
+void World::seedDeformedNormals() {
+  seeds_.clear();
+  const double cosTurn = std::cos(settings_.normalTurnThreshold);
   for (const ConnectorId cid : deformableConnectors_) {
     const std::size_t c = cid.index();
     if (connectors_.broken[c]) continue;
-    const double len = (particles_.position[connectors_.b[c].index()] - particles_.position[connectors_.a[c].index()]).norm();
-    if (std::abs(len / connectors_.restLength[c] - 1.0) <= settings_.normalStrainThreshold) continue;
-    seeds_.push_back(connectors_.a[c]);
-    seeds_.push_back(connectors_.b[c]);
+    const ParticleId a = connectors_.a[c], b = connectors_.b[c];
+    const Vec3 d = particles_.position[b.index()] - particles_.position[a.index()];
+    const double len = d.norm();
+    if (!(len > 0.0)) continue;
+    const Vec3 local = bodies_.state[particles_.body[a.index()].index()].orientation.conjugate() * (d / len);
+    const bool stretched = std::abs(len / connectors_.restLength[c] - 1.0) > settings_.normalStrainThreshold;
+    if (!stretched && local.dot(connectorDirection_[c]) >= cosTurn) continue;
+    connectorDirection_[c] = local;
+    seeds_.push_back(a);
+    seeds_.push_back(b);
   }
   if (!seeds_.empty()) recomputeNormalsAround(seeds_, 1);
 }
 
 void World::recomputeNormalsAround(std::span<const ParticleId> seeds, int rings) {
   // the seeds and their neighbours within `rings` connectors, each once
-  ringScratch_.assign(seeds.begin(), seeds.end());
+  ringMark_.resize(particles_.size(), 0);
+  if (++ringStamp_ == 0) {
+    std::fill(ringMark_.begin(), ringMark_.end(), 0u);
+    ringStamp_ = 1;
+  }
+  ringScratch_.clear();
+  for (const ParticleId s : seeds)
+    if (ringMark_[s.index()] != ringStamp_) {
+      ringMark_[s.index()] = ringStamp_;
+      ringScratch_.push_back(s);
+    }
   std::size_t frontierBegin = 0;
   for (int r = 0; r < rings; ++r) {
     const std::size_t frontierEnd = ringScratch_.size();
     for (std::size_t i = frontierBegin; i < frontierEnd; ++i)
-      for (const ParticleId n : contactFinder_.neighbours(ringScratch_[i])) ringScratch_.push_back(n);
+      for (const ParticleId n : contactFinder_.neighbours(ringScratch_[i]))
+        if (ringMark_[n.index()] != ringStamp_) {
+          ringMark_[n.index()] = ringStamp_;
+          ringScratch_.push_back(n);
+        }
     frontierBegin = frontierEnd;
   }
   std::sort(ringScratch_.begin(), ringScratch_.end());
-  ringScratch_.erase(std::unique(ringScratch_.begin(), ringScratch_.end()), ringScratch_.end());
   recomputeNormals(ringScratch_);
 }
 
@@ -368,12 +400,11 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
       particles_.local[i] = toLocal * (particles_.position[i] - mp.centre);
       const std::int32_t k = particles_.normalIndex[i];
       if (k >= 0) {
-        // the cached normal (and its faces) from the parent's frame to the fragment's
+        // the cached normal (and its faces) from the parent's frame to the fragment's, in place
         std::array<Vec3, 3> faces{};
         const std::span<const Vec3> old = normals_.faces(k);
         for (std::size_t f = 0; f < old.size(); ++f) faces[f] = toLocal * (parentState.orientation * old[f]);
-        particles_.normalIndex[i] = normals_.add(toLocal * (parentState.orientation * normals_[k]),
-                                                 std::span<const Vec3>(faces.data(), old.size()));
+        normals_.set(k, toLocal * (parentState.orientation * normals_[k]), std::span<const Vec3>(faces.data(), old.size()));
       }
     }
     bodies_.add(state, std::move(info));
@@ -411,7 +442,7 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
 }
 
 std::size_t World::recomputeNormals(std::span<const ParticleId> ids) {
-  const std::size_t n = volpar::recomputeNormals(ids, particles_, bodies_, contactFinder_, normals_);
+  const std::size_t n = normalUpdater_.recompute(ids, particles_, bodies_, contactFinder_, opened_, normals_);
   stats_.normalsRecomputed += n;
   return n;
 }

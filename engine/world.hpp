@@ -105,7 +105,7 @@ class World {
   /// Runs collision detection on the current state (done by step(); needed after adding bodies).
   void refreshContacts();
   /// Recomputes the cached normals of exactly these particles from their connector neighbourhood
-  /// (recomputeNormals in collision/normal_cache.hpp); counted in stats().normalsRecomputed.
+  /// (NormalUpdater in collision/normal_cache.hpp); counted in stats().normalsRecomputed.
   std::size_t recomputeNormals(std::span<const ParticleId> ids);
   /// Connectors that broke in the last step.
   [[nodiscard]] const std::vector<BreakEvent>& breakEvents() const { return breakEvents_; }
@@ -143,6 +143,9 @@ class World {
   void applyBreakage();
   void splitBody(BodyId parent, std::span<const std::uint32_t> component, std::size_t components);
   void recomputeNormalsAround(std::span<const ParticleId> seeds, int rings);
+  /// Seeds the particles around deformable connectors that stretched or turned since their normals were
+  /// last estimated.
+  void seedDeformedNormals();
   void detectCollisions();
   void updateRigidParticles(BodyId id);
   [[nodiscard]] bool finiteState() const;
@@ -156,6 +159,10 @@ class World {
   ConnectorStore connectors_;
   BodyStore bodies_;
   NormalCache normals_;
+  NormalUpdater normalUpdater_;
+  std::vector<std::uint8_t> opened_;              // [P] 1 where a particle lost a connector (a crack face)
+  std::vector<Vec3> connectorDirection_;          // [C] deformable connectors: direction in the body frame
+                                                  // when their particles' normals were last estimated
   Broadphase broadphase_;
   ContactFinder contactFinder_;
   std::vector<Aabb> bodyBoxes_;
@@ -196,6 +203,8 @@ class World {
   std::vector<Vec3> deformableContactImpulses_;
   std::vector<BodyId> touchedRigid_;
   std::vector<ParticleId> seeds_, ringScratch_;
+  std::vector<std::uint32_t> ringMark_;
+  std::uint32_t ringStamp_ = 0;
   bool contactsStale_ = true;
   double maxRadius_ = 0.0;
 

@@ -30,8 +30,11 @@ struct WorldSettings {
   /// one the pair's approach speed closes within the step. A farther gap could only close if the solver
   /// itself drove the pair together faster than this distance per step, and its point is left out.
   double speculativeDistance = 0.0;
-  /// Strain of a deformable body's connector [-] beyond which the normals around it are recomputed.
+  /// A deformable body's normals follow its shape: around a connector that has stretched by this strain [-]
+  /// or turned (relative to the body's best-fit rotation) by more than normalTurnThreshold [rad] since its
+  /// particles' normals were last estimated, they are estimated again.
   double normalStrainThreshold = 0.05;
+  double normalTurnThreshold = 0.035;
   /// Worker threads for the step (1 = none). The results do not depend on it: bit for bit the same.
   int threads = 1;
 };

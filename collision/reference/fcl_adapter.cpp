@@ -317,9 +317,9 @@ CoreContact coreContact(const SourceShape& sa, const Vec3& pa, const Quat& qa, c
   if (!ga || !gb) return rc;
   fcl::Transform3d xa = fcl::Transform3d::Identity(), xb = fcl::Transform3d::Identity();
   xa.linear() = qa.toRotationMatrix();
-  xa.translation() = pa;
+  xa.translation() = pa + qa * sa.centre;
   xb.linear() = qb.toRotationMatrix();
-  xb.translation() = pb;
+  xb.translation() = pb + qb * sb.centre;
   fcl::CollisionObjectd a(ga, xa), b(gb, xb);
   fcl::DistanceRequestd req(true, false);
   req.distance_tolerance = 1e-12;

@@ -5,7 +5,7 @@
 #include <set>
 #include <sstream>
 
-#include "collision/normal_cache.hpp"
+#include "collision/normal_estimation.hpp"
 #include "collision/particle_grid.hpp"
 
 namespace volpar {
@@ -102,57 +102,101 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
   // the shape's exact volume, shared evenly: the body gets exactly density x volume
   const double cell = shape.volume() / static_cast<double>(kept.size());
   const double band = 0.5 * s;
-  std::vector<Vec3> missing, features;
+  std::vector<Vec3> missing, present, features;
   for (const Index3& ijk : kept) {
     const Vec3 p = anchor + siteOffset(settings.lattice, s, ijk);
     missing.clear();
+    present.clear();
     for (long dk = -1; dk <= 1; ++dk)
       for (long dj = -2; dj <= 2; ++dj)
         for (long di = -2; di <= 2; ++di) {
           const Index3 nb{ijk[0] + di, ijk[1] + dj, ijk[2] + dk};
           const Vec3 q = anchor + siteOffset(settings.lattice, s, nb);
           const double d = (q - p).norm();
-          if (d > 0.5 * s && d < 1.01 * s && !keptSet.contains(nb)) missing.push_back((q - p) / d);
+          if (!(d > 0.5 * s && d < 1.01 * s)) continue;
+          (keptSet.contains(nb) ? present : missing).push_back((q - p) / d);
         }
+    // the features of the shape facing a missing neighbour
+    std::uint8_t flags = 0;
     Vec3 normal = Vec3::Zero();
+    std::array<Vec3, 3> faces{Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
     int used = 0;
-    std::array<Vec3, 3> featureNormals{Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
     if (!missing.empty()) {
+      flags = kParticleSurface;
+      std::vector<Vec3> facing;
       shape.featureNormals(p, band, features);
       for (const Vec3& n : features) {
-        double facing = -1.0;
-        for (const Vec3& o : missing) facing = std::max(facing, n.dot(o));
-        if (facing > 0.5) {
+        double top = -1.0;
+        for (const Vec3& o : missing) top = std::max(top, n.dot(o));
+        if (top > 0.5) facing.push_back(n);
+      }
+      if (facing.empty() && !features.empty()) facing.push_back(features.front());  // nearest feature
+      // two opposite faces both open: a layer one particle thick (a sheet), each side a face of its own
+      std::size_t first = facing.size(), second = facing.size();
+      for (std::size_t a = 0; a < facing.size() && first == facing.size(); ++a)
+        for (std::size_t b = a + 1; b < facing.size(); ++b)
+          if (facing[a].dot(facing[b]) < -0.9) {
+            first = a;
+            second = b;
+            break;
+          }
+      // neighbours all on one line through the site: a chain one particle thick
+      bool line = !present.empty();
+      for (const Vec3& d : present) line = line && std::abs(std::abs(d.dot(present.front())) - 1.0) < 1e-9;
+      if (present.empty()) {
+        // a lone site: surface, no preferred direction
+      } else if (line) {
+        flags |= kParticleLine;
+        normal = present.front();
+      } else if (first < facing.size()) {
+        flags |= kParticleSheet;
+        faces[0] = facing[first];
+        faces[1] = facing[second];
+        normal = faces[0];
+        used = 2;
+        for (std::size_t k = 0; k < facing.size() && used < 3; ++k) {
+          if (k == first || k == second) continue;
+          faces[2] = facing[k];  // the rim of the sheet
+          normal = facing[k];
+          flags |= kParticleEdge;
+          used = 3;
+        }
+      } else {
+        for (const Vec3& n : facing) {
           normal += n;
-          if (used < 3) featureNormals[static_cast<std::size_t>(used)] = n;
+          if (used < 3) faces[static_cast<std::size_t>(used)] = n;
           ++used;
         }
+        if (normal.norm() > 1e-9) normal.normalize();
+        if (used == 2) flags |= kParticleEdge;
+        if (used >= 3) flags |= kParticleCorner;
       }
-      if (normal.norm() < 1e-9 && !features.empty()) {
-        normal = features.front();  // nearest feature
-        featureNormals[0] = normal;
-        used = 1;
-      }
-      if (normal.norm() > 1e-9) normal.normalize();
     }
     cloud.positions.push_back(p);
     cloud.radii.push_back(r);
     cloud.volumes.push_back(cell);
-    cloud.surface.push_back(missing.empty() ? 0 : 1);
+    cloud.flags.push_back(flags);
     cloud.normals.push_back(normal);
     cloud.features.push_back(static_cast<std::uint8_t>(std::min(used, 3)));
-    cloud.featureNormals.push_back(featureNormals);
+    cloud.featureNormals.push_back(faces);
   }
   cloud.connectors = connectWithin(cloud.positions, settings.reach * s);
   return cloud;
 }
 
 void useEstimatedNormals(ParticleCloud& cloud) {
-  const EstimatedNormals est = estimateNormals(cloud.positions, cloud.connectors);
-  cloud.normals = est.normal;
-  cloud.surface = est.surface;
-  cloud.features.assign(cloud.size(), 0);
-  cloud.featureNormals.assign(cloud.size(), {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()});
+  const std::vector<SurfaceEstimate> est = estimateSurface(cloud.positions, cloud.connectors);
+  const std::size_t n = cloud.size();
+  cloud.flags.resize(n);
+  cloud.normals.resize(n);
+  cloud.features.resize(n);
+  cloud.featureNormals.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    cloud.flags[i] = est[i].flags;
+    cloud.normals[i] = est[i].normal;
+    cloud.features[i] = est[i].faceCount;
+    cloud.featureNormals[i] = est[i].faces;
+  }
 }
 
 Result<ParticleCloud> buildParticleList(const ParticleListSettings& in) {
@@ -191,10 +235,7 @@ Result<ParticleCloud> buildParticleList(const ParticleListSettings& in) {
     const double reach = in.reach > 0.0 ? in.reach : 3.0 * maxRadius;
     cloud.connectors = connectWithin(cloud.positions, reach);
   }
-  const EstimatedNormals est = estimateNormals(cloud.positions, cloud.connectors);
-  cloud.normals = est.normal;
-  cloud.surface = est.surface;
-  cloud.features.assign(n, 0);
+  useEstimatedNormals(cloud);
   return cloud;
 }
 

@@ -14,8 +14,9 @@ struct ParticleCloud {
   std::vector<double> radii;      ///< [m], [P]
   std::vector<double> volumes;    ///< volume each particle stands for [m^3], [P] (share of the shape, or sphere volume)
   std::vector<Vec3> normals;      ///< outward unit normal of surface particles, zero otherwise, shape frame, [P]
-  std::vector<std::uint8_t> surface;  ///< 1 for surface particles, [P]
-  /// Surface features the normal averages: 0 interior or unknown, 1 face, 2 edge, 3 or more corner, [P]
+  /// ParticleFlag bits (engine/core/particle_store.hpp), 0 for interior particles, [P]
+  std::vector<std::uint8_t> flags;
+  /// How many exact face normals are in featureNormals: 0 interior or unknown, 1 face, 2 edge, 3 corner, [P]
   std::vector<std::uint8_t> features;
   /// The exact normals of those features (the first min(features, 3) entries are set), shape frame, [P]
   std::vector<std::array<Vec3, 3>> featureNormals;

@@ -11,12 +11,19 @@
 
 namespace volpar {
 
-/// Per-particle flag bits.
+/// Per-particle flag bits: how the body's surface looks at the particle (collision/normal_cache.hpp).
 enum ParticleFlag : std::uint8_t {
   kParticleSurface = 1u << 0,  ///< on the body's surface (has a cached normal)
   kParticleEdge = 1u << 1,     ///< on an edge of its shape (its normal averages two faces)
   kParticleCorner = 1u << 2,   ///< on a corner (its normal averages three or more faces)
+  kParticleSheet = 1u << 3,    ///< in a layer one particle thick: both sides are surface (the normal is one
+                               ///< of them; with kParticleEdge also on the layer's rim, its normal in-plane)
+  kParticleLine = 1u << 4,     ///< in a chain one particle thick: every direction across it is surface (the
+                               ///< cached "normal" is the chain's direction)
 };
+/// Flags of particles whose surface has no single normal at them: contacts there take their normal from
+/// the other side or from the geometry of the two sides.
+inline constexpr std::uint8_t kParticleSharp = kParticleEdge | kParticleCorner | kParticleLine;
 
 struct ParticleStore {
   std::vector<Vec3> position;          ///< world centre [m], [P]

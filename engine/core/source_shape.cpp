@@ -11,9 +11,13 @@ SourceShape fittedCore(const SourceShape& shape, std::span<const Vec3> centres) 
   if (!shape.isConvexSolid() || centres.empty()) return core;
   switch (shape.kind) {
     case SourceShape::Kind::Box: {
-      Vec3 half = Vec3::Zero();
-      for (const Vec3& x : centres) half = half.cwiseMax(x.cwiseAbs());
-      core.size = 2.0 * half;
+      Vec3 lo = centres.front(), hi = centres.front();
+      for (const Vec3& x : centres) {
+        lo = lo.cwiseMin(x);
+        hi = hi.cwiseMax(x);
+      }
+      core.size = hi - lo;
+      core.centre = 0.5 * (hi + lo);
       break;
     }
     case SourceShape::Kind::Sphere: {
@@ -23,13 +27,15 @@ SourceShape fittedCore(const SourceShape& shape, std::span<const Vec3> centres) 
       break;
     }
     case SourceShape::Kind::Cylinder: {
-      double r = 0.0, h = 0.0;
+      double r = 0.0, lo = centres.front().z(), hi = lo;
       for (const Vec3& x : centres) {
         r = std::max(r, std::hypot(x.x(), x.y()));
-        h = std::max(h, std::abs(x.z()));
+        lo = std::min(lo, x.z());
+        hi = std::max(hi, x.z());
       }
       core.radius = r;
-      core.length = 2.0 * h;
+      core.length = hi - lo;
+      core.centre = Vec3(0.0, 0.0, 0.5 * (hi + lo));
       break;
     }
     case SourceShape::Kind::Capsule: {

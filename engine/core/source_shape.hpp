@@ -22,6 +22,7 @@ struct SourceShape {
   Vec3 size = Vec3::Zero();  ///< box: full side lengths [m]
   double radius = 0.0;       ///< sphere, cylinder, capsule [m]
   double length = 0.0;       ///< cylinder: total height; capsule: segment length [m]
+  Vec3 centre = Vec3::Zero();  ///< where the solid's centre is in the shape frame [m] (a fitted core may be off-centre)
   /// Convex meshes: the planes n . x <= d of the solid's faces (unit n, shape frame [m]), one per distinct
   /// face plane; empty for a mesh that is not convex (which has no exact reference).
   std::vector<std::pair<Vec3, double>> facePlanes;
@@ -31,11 +32,12 @@ struct SourceShape {
   [[nodiscard]] bool isConvexSolid() const { return isPrimitive() || (kind == Kind::Mesh && !facePlanes.empty()); }
 };
 
-/// The tightest solid of the same kind around particle centres given in the shape frame: a box's half
-/// sides are the largest |coordinates|, a sphere's radius the farthest centre, a cylinder's radius and half
-/// height the farthest centre from its axis and from its middle plane, a capsule keeps its segment and
-/// takes the farthest centre from it, a convex mesh keeps its face normals with each plane moved to the
-/// farthest centre along it. For a lattice that fills its solid exactly this is the solid shrunk by the
+/// The tightest solid of the same kind and axes around particle centres given in the shape frame: a box
+/// spans the centres' extent along each axis, a sphere keeps its centre and reaches the farthest centre, a
+/// cylinder keeps its axis, spans the centres along it and reaches the farthest from it, a capsule keeps
+/// its segment and reaches the farthest centre from it, a convex mesh keeps its face normals with each
+/// plane moved to the farthest centre along it. (A lattice need not sit symmetrically in its solid: an HCP
+/// box's opposite faces can lie at different depths, so the core can be off-centre.) For a lattice that fills its solid exactly this is the solid shrunk by the
 /// particle radius. Shapes that are not convex solids come back unchanged.
 [[nodiscard]] SourceShape fittedCore(const SourceShape& shape, std::span<const Vec3> centres);
 

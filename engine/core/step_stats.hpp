@@ -46,6 +46,8 @@ struct StepStats {
   std::size_t candidates = 0;       ///< candidate normals tried
   std::size_t lookAheads = 0;       ///< look-aheads for single-contact patches
   std::size_t unvalidatedPatches = 0;  ///< patches whose plane no candidate could validate
+  std::size_t contactLinePatches = 0;  ///< of them, resolved contact by contact along centre lines
+  std::size_t lookAheadsDecided = 0;   ///< patches whose plane a look-ahead decided
   std::size_t patchesReused = 0;    ///< patches taken over from an earlier step (temporal coherence)
   std::size_t normalsRecomputed = 0;   ///< cached surface normals recomputed this step
   std::size_t contactPoints = 0;       ///< solver contact points (patches reduced to at most 4 points)

@@ -13,7 +13,7 @@
 namespace volpar {
 namespace {
 
-SourceShape box(const Vec3& size) { return SourceShape{SourceShape::Kind::Box, size, 0, 0, {}}; }
+SourceShape box(const Vec3& size) { return SourceShape{SourceShape::Kind::Box, size, 0, 0, Vec3::Zero(), {}}; }
 
 TEST(CoreReference, FittedCoresAreTheSolidsShrunkByTheRadiusWhereTheLatticeFillsThem) {
   const double r = 0.025;
@@ -23,7 +23,7 @@ TEST(CoreReference, FittedCoresAreTheSolidsShrunkByTheRadiusWhereTheLatticeFills
   EXPECT_LT((core.size - Vec3(0.35, 0.25, 0.0)).norm(), 1e-12);  // a one-layer plate has a flat core
   auto ball = fillShape(SphereShape(0.25), {Lattice::Cubic, r});
   ASSERT_TRUE(ball.ok());
-  const SourceShape sphereCore = fittedCore(SourceShape{SourceShape::Kind::Sphere, Vec3::Zero(), 0.25, 0, {}}, ball->positions);
+  const SourceShape sphereCore = fittedCore(SourceShape{SourceShape::Kind::Sphere, Vec3::Zero(), 0.25, 0, Vec3::Zero(), {}}, ball->positions);
   EXPECT_LE(sphereCore.radius, 0.25 - r + 1e-12);
   EXPECT_GT(sphereCore.radius, 0.25 - r - 0.05);
 }
@@ -54,7 +54,7 @@ TEST(CoreReference, ClosedFormPoses) {
   EXPECT_NEAR(vf.distance, 0.02, 1e-9);
   EXPECT_LT((vf.normal - Vec3::UnitZ()).norm(), 1e-7);
   // spheres: the centre line
-  const SourceShape ball{SourceShape::Kind::Sphere, Vec3::Zero(), 0.2, 0, {}};
+  const SourceShape ball{SourceShape::Kind::Sphere, Vec3::Zero(), 0.2, 0, Vec3::Zero(), {}};
   const reference::CoreContact balls = reference::coreContact(ball, Vec3::Zero(), Quat::Identity(), ball, Vec3(0.4, 0.2, 0.1),
                                                               Quat(Eigen::AngleAxisd(1.0, Vec3::UnitY())));
   ASSERT_TRUE(balls.valid);

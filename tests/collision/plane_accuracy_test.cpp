@@ -41,19 +41,19 @@ Shape makeShape(SourceShape s, const SolidShape& solid, Lattice lattice, double 
 }
 
 Shape box() {
-  SourceShape s{SourceShape::Kind::Box, Vec3(0.4, 0.3, 0.3), 0, 0, {}};
+  SourceShape s{SourceShape::Kind::Box, Vec3(0.4, 0.3, 0.3), 0, 0, Vec3::Zero(), {}};
   return makeShape(s, BoxShape(s.size), Lattice::Cubic, 0.025);
 }
 Shape sphere() {
-  SourceShape s{SourceShape::Kind::Sphere, Vec3::Zero(), 0.25, 0, {}};
+  SourceShape s{SourceShape::Kind::Sphere, Vec3::Zero(), 0.25, 0, Vec3::Zero(), {}};
   return makeShape(s, SphereShape(0.25), Lattice::Cubic, 0.025);
 }
 Shape capsule() {
-  SourceShape s{SourceShape::Kind::Capsule, Vec3::Zero(), 0.12, 0.3, {}};
+  SourceShape s{SourceShape::Kind::Capsule, Vec3::Zero(), 0.12, 0.3, Vec3::Zero(), {}};
   return makeShape(s, CapsuleShape(0.12, 0.3), Lattice::Cubic, 0.02);
 }
 Shape cylinder() {
-  SourceShape s{SourceShape::Kind::Cylinder, Vec3::Zero(), 0.15, 0.4, {}};
+  SourceShape s{SourceShape::Kind::Cylinder, Vec3::Zero(), 0.15, 0.4, Vec3::Zero(), {}};
   return makeShape(s, CylinderShape(0.15, 0.4), Lattice::Cubic, 0.025);
 }
 

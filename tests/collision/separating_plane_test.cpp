@@ -108,7 +108,9 @@ TEST(SeparatingPlane, VertexFace11) {
   s.place(corner, Vec3(0, 0, 0.05 + 0.095));
   ASSERT_EQ(s.world.contacts().contacts.size(), 1u);
   expectPlane(s.onlyPatch(), PlaneCase::VertexFace11, -Vec3::UnitZ());
-  EXPECT_EQ(s.world.stats().lookAheads, 1u);
+  // at rest there is no motion to follow: the face's plane is the geometry's own
+  EXPECT_EQ(s.world.stats().lookAheads, 0u);
+  EXPECT_FALSE(s.onlyPatch().lookAhead);
 }
 
 // the corner in the groove between two face particles
@@ -136,7 +138,7 @@ TEST(SeparatingPlane, VertexFace13) {
   s.place(s.extreme(s.a, false), hollow + Vec3(0, 0, h));
   ASSERT_EQ(s.world.contacts().contacts.size(), 3u);
   expectPlane(s.onlyPatch(), PlaneCase::VertexFace13, -Vec3::UnitZ());
-  EXPECT_EQ(s.onlyPatch().source, NormalSource::FaceB);
+  EXPECT_EQ(s.onlyPatch().source, NormalSource::Surface);  // B's face
 }
 
 // crossing edges: one particle of A's edge between two of B's
@@ -156,7 +158,7 @@ TEST(SeparatingPlane, EdgeEdge22) {
   s.place(low, Vec3(0.05, 0, s.x(s.extreme(s.b, true)).z() + 0.06));
   ASSERT_EQ(s.world.contacts().contacts.size(), 4u);
   expectPlane(s.onlyPatch(), PlaneCase::EdgeEdge22, -Vec3::UnitZ());
-  EXPECT_EQ(s.onlyPatch().source, NormalSource::LineLine);
+  EXPECT_EQ(s.onlyPatch().source, NormalSource::Surface);  // across both edges
 }
 
 // parallel edges: two particles above three collinear ones
@@ -174,7 +176,7 @@ TEST(SeparatingPlane, EdgeFace23) {
   s.place(s.extreme(s.a, false, Vec3(0.05, 0, 0)), Vec3(0.05, 0, 0.05 + 0.08));
   ASSERT_EQ(s.world.contacts().contacts.size(), 4u);  // each edge particle in a groove of the face
   expectPlane(s.onlyPatch(), PlaneCase::EdgeFace23, -Vec3::UnitZ());
-  EXPECT_EQ(s.onlyPatch().source, NormalSource::FaceB);
+  EXPECT_EQ(s.onlyPatch().source, NormalSource::Surface);  // B's face
 }
 
 // an edge of three collinear particles on a face
@@ -240,28 +242,64 @@ TEST(SeparatingPlane, BoxOnAnLGetsTheFaceNormal) {
   EXPECT_GT(angleDeg(centres, -Vec3::UnitZ()), 30.0);
 }
 
-TEST(SeparatingPlane, LookAheadLeavesTheWorldBitForBitUnchanged) {
-  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), kCornerDown, boxCloud(Vec3(0.5, 0.5, 0.2)), Quat::Identity());
-  s.world.bodyState(s.a).linearVelocity = Vec3(0.3, -0.2, -1.0);
-  s.world.bodyState(s.a).angularVelocity = Vec3(1.0, 2.0, -0.5);
-  s.place(s.extreme(s.a, false), Vec3(0.01, 0.02, 0.05 + 0.097));
+// parallel edges (A's lowest edge resting on B's upper edge, a little to its right; A's bottom face rises
+// 25 degrees from level to the left), A toppling to the left about its edge: the look-ahead follows the
+// motion to the contacts that face makes with B's edge (when it is about level) and takes its plane
+TEST(SeparatingPlane, LookAheadTurnsParallelEdgesIntoAnEdgeOnAFace) {
+  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), about(Vec3::UnitY(), 25), boxCloud(Vec3(0.3, 0.3, 0.3)), about(Vec3::UnitY(), 45));
+  const ParticleId low = s.extreme(s.a, false, Vec3(0, 0.0, 0));
+  const ParticleId top = s.extreme(s.b, true, Vec3(0, 0.0, 0));
+  // A toppling about its edge particle (which stays put): v = -w x (edge - centre), set before it is placed
+  // (placing moves A rigidly)
+  const double spin = 20.0;  // [rad/s] about -y: its left side comes down
+  BodyState& state = s.world.bodyState(s.a);
+  state.angularVelocity = Vec3(0, -spin, 0);
+  state.linearVelocity = -state.angularVelocity.cross(s.x(low) - state.position);
+  const Vec3 offset(0.05, 0.0, 0.0866);  // touching, 30 degrees off vertical
+  s.place(low, s.x(top) + offset);
+  ASSERT_EQ(s.world.patches().patches.size(), 1u);
+  const ContactPatch& p = s.onlyPatch();
+  EXPECT_EQ(p.planeCase, PlaneCase::EdgeEdge23) << planeCaseName(p.planeCase);
+  EXPECT_EQ(s.world.stats().lookAheads, 1u);
+  ASSERT_TRUE(p.lookAhead);
+  EXPECT_TRUE(p.lookAheadCase == PlaneCase::EdgeFace23 || p.lookAheadCase == PlaneCase::EdgeFace33) << planeCaseName(p.lookAheadCase);
+  EXPECT_TRUE(p.validated);
+  // the face that lands: A's bottom face (outward normal 25 degrees off straight down now), turned towards
+  // level until it meets B's edge. The motion followed is each particle's velocity in a straight line, which
+  // turns a face through the pivot by atan(w t) within the horizon of 8 steps.
+  const Vec3 face = about(Vec3::UnitY(), 25) * Vec3(0, 0, -1);
+  EXPECT_LT(std::abs(p.normal.y()), 1e-9);
+  EXPECT_GT(angleDeg(p.normal, face), 15.0) << p.normal.transpose();
+  EXPECT_LT(angleDeg(p.normal, face), std::atan(spin * 8.0 * s.world.settings().dt) * 180.0 / std::numbers::pi);
+  EXPECT_LT(angleDeg(p.normal, -Vec3::UnitZ()), 10.0);
+  EXPECT_GT(angleDeg(p.normal, -offset), 10.0);  // not the edges' perpendicular
+}
+
+// the same edges at rest: nothing to foresee, the perpendicular between them
+TEST(SeparatingPlane, ParallelEdgesAtRestKeepTheirPerpendicular) {
+  Pair s(boxCloud(Vec3(0.2, 0.2, 0.2)), about(Vec3::UnitY(), 45), boxCloud(Vec3(0.3, 0.3, 0.3)), about(Vec3::UnitY(), 45));
+  const ParticleId low = s.extreme(s.a, false, Vec3(0, 0.05, 0));
+  s.place(low, Vec3(0, 0.05, s.x(s.extreme(s.b, true)).z() + 0.1));
+  expectPlane(s.onlyPatch(), PlaneCase::EdgeEdge23, -Vec3::UnitZ());
+  EXPECT_FALSE(s.onlyPatch().lookAhead);
+}
+
+// corner on corner (a single contact whose geometry says nothing but the line between the corners), A
+// sliding across B's corner: the look-ahead finds the next contacts, the second of which has a plane
+TEST(SeparatingPlane, LookAheadDecidesACornerOnACorner) {
+  const Quat cornerUp = Quat::FromTwoVectors(Vec3(1, 1, 1).normalized(), Vec3(0, 0, 1));
+  Pair s(boxCloud(Vec3(0.3, 0.3, 0.3)), kCornerDown, boxCloud(Vec3(0.3, 0.3, 0.3)), cornerUp);
+  s.world.bodyState(s.a).linearVelocity = Vec3(3.0, 0.0, -3.0);
+  const ParticleId top = s.extreme(s.b, true);
+  s.place(s.extreme(s.a, false), s.x(top) + Vec3(0, 0, 0.097));
   ASSERT_EQ(s.world.contacts().contacts.size(), 1u);
-  const ParticleStore before = s.world.particles();
-  const BodyStore bodiesBefore = s.world.bodies();
-  PatchSet patches;
-  NarrowPhase np;
-  np.run(s.world.narrowPhaseInput(), s.world.contacts(), patches);
-  EXPECT_EQ(patches.stats.lookAheads, 1u);
-  const ParticleStore& after = s.world.particles();
-  ASSERT_EQ(after.size(), before.size());
-  EXPECT_EQ(std::memcmp(after.position.data(), before.position.data(), before.size() * sizeof(Vec3)), 0);
-  EXPECT_EQ(std::memcmp(after.velocity.data(), before.velocity.data(), before.size() * sizeof(Vec3)), 0);
-  for (std::size_t b = 0; b < 2; ++b) {
-    const BodyState& x = s.world.bodies().state[b];
-    const BodyState& y = bodiesBefore.state[b];
-    EXPECT_TRUE(x.position == y.position && x.orientation.coeffs() == y.orientation.coeffs() &&
-                x.linearVelocity == y.linearVelocity && x.angularVelocity == y.angularVelocity);
-  }
+  const ContactPatch& p = s.onlyPatch();
+  EXPECT_EQ(p.planeCase, PlaneCase::VertexFace11);
+  EXPECT_EQ(s.world.stats().lookAheads, 1u);
+  ASSERT_TRUE(p.lookAhead);
+  EXPECT_NE(p.lookAheadCase, PlaneCase::VertexFace11);
+  EXPECT_TRUE(p.validated);
+  EXPECT_GT(angleDeg(p.normal, -Vec3::UnitZ()), 1.0);  // not the corners' line
 }
 
 TEST(SeparatingPlane, PatchesGroupByConnectorAdjacency) {
@@ -275,26 +313,53 @@ TEST(SeparatingPlane, PatchesGroupByConnectorAdjacency) {
   for (const ContactPatch& p : s.world.patches().patches) EXPECT_LT(angleDeg(p.normal, -Vec3::UnitZ()), 1e-6);
 }
 
-TEST(NormalCache, PartialRecomputationReproducesTheBuildersNormalsNearby) {
-  // a 5x5x5 block given as an explicit list: recompute a handful of particles, count exactly those
+TEST(NormalCache, PartialRecomputationReproducesTheBuildersNormalsAndFlags) {
+  // a 6 x 5 x 4 block: re-estimating particles from their neighbourhood gives exactly the builder's normals,
+  // faces and flags (face, edge, corner, interior), and the cache reuses their entries
   World w = test::worldFromString(R"(
 dt: 0.01
 steps: 1
+gravity: [0, 0, 0]
 bodies:
-  - shape: {box: {size: [0.5, 0.5, 0.5]}}
+  - shape: {box: {size: [0.6, 0.5, 0.4]}}
     fill: {radius: 0.05}
+    orientation: {axis: [1, 2, 3], angle_deg: 40}
 )");
   w.refreshContacts();
-  std::vector<ParticleId> some{ParticleId(0u), ParticleId(2u), ParticleId(62u)};
-  std::vector<Vec3> before;
-  for (const ParticleId p : some) before.push_back(w.particleNormal(p));
-  const std::size_t n = w.recomputeNormals(some);
-  EXPECT_EQ(n, some.size());
-  EXPECT_EQ(w.stats().normalsRecomputed, some.size());
-  // the centre particle stays interior; a face particle keeps its face normal; a corner points outwards
-  EXPECT_TRUE(w.particleNormal(ParticleId(62u)).isZero());
-  EXPECT_LT(angleDeg(w.particleNormal(ParticleId(2u)), before[1]), 1e-9);
-  EXPECT_LT(angleDeg(w.particleNormal(ParticleId(0u)), before[0]), 1.0);
+  const std::size_t n = w.particles().size();
+  std::vector<Vec3> normals;
+  std::vector<std::uint8_t> flags;
+  std::vector<std::vector<Vec3>> faces;
+  for (std::size_t i = 0; i < n; ++i) {
+    normals.push_back(w.particleNormal(ParticleId(i)));
+    flags.push_back(w.particles().flags[i]);
+    const std::int32_t k = w.particles().normalIndex[i];
+    faces.emplace_back();
+    if (k >= 0)
+      for (const Vec3& f : w.normals().faces(k)) faces.back().push_back(f);
+  }
+  const std::size_t entries = w.normals().size();
+  std::vector<ParticleId> all;
+  for (std::size_t i = 0; i < n; ++i) all.emplace_back(i);
+  w.recomputeNormals(all);
+  EXPECT_EQ(w.normals().size(), entries);  // rewritten in place
+  int edges = 0, corners = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    EXPECT_EQ(w.particles().flags[i], flags[i]) << i;
+    EXPECT_LT((w.particleNormal(ParticleId(i)) - normals[i]).norm(), 1e-9) << i;
+    const std::int32_t k = w.particles().normalIndex[i];
+    if (k < 0) continue;
+    ASSERT_EQ(w.normals().faces(k).size(), faces[i].size()) << i;
+    for (const Vec3& f : w.normals().faces(k)) {
+      double best = 2.0;
+      for (const Vec3& g : faces[i]) best = std::min(best, (f - g).norm());
+      EXPECT_LT(best, 1e-9) << i;
+    }
+    edges += (flags[i] & kParticleEdge) != 0;
+    corners += (flags[i] & kParticleCorner) != 0;
+  }
+  EXPECT_EQ(corners, 8);
+  EXPECT_EQ(edges, 4 * (4 + 3 + 2));
 }
 
 }  // namespace

@@ -72,12 +72,12 @@ TEST(BoxFill, SurfaceParticlesGetFaceEdgeAndCornerNormals) {
     const Vec3 outer(std::abs(p.x()) > 0.05 ? (p.x() > 0 ? 1 : -1) : 0, std::abs(p.y()) > 0.05 ? (p.y() > 0 ? 1 : -1) : 0,
                      std::abs(p.z()) > 0.05 ? (p.z() > 0 ? 1 : -1) : 0);
     if (outer.isZero()) {
-      EXPECT_FALSE(c.surface[i]);
+      EXPECT_FALSE(c.flags[i]);
       EXPECT_TRUE(c.normals[i].isZero());
       continue;
     }
     ++surface;
-    EXPECT_TRUE(c.surface[i]);
+    EXPECT_TRUE(c.flags[i]);
     // face particles: the face normal; edges and corners: the mean of the faces they lie on
     EXPECT_LT((c.normals[i] - outer.normalized()).norm(), 1e-12) << p.transpose();
   }
@@ -127,7 +127,7 @@ TEST(SphereFill, SurfaceNormalsAreRadial) {
   const ParticleCloud c = fillOrFail(SphereShape(0.5), {Lattice::Hcp, 0.05});
   int surface = 0;
   for (std::size_t i = 0; i < c.size(); ++i) {
-    if (!c.surface[i]) continue;
+    if (!c.flags[i]) continue;
     ++surface;
     EXPECT_NEAR(c.normals[i].dot(c.positions[i].normalized()), 1.0, 1e-12);
     EXPECT_GT(c.positions[i].norm(), 0.5 - 0.05 - 2 * 0.1);  // within two layers of the surface
@@ -150,7 +150,7 @@ TEST(HcpFill, PacksDenserThanCubic) {
   int full = 0;
   for (std::size_t i = 0; i < hcp.size(); ++i) {
     EXPECT_LE(nearest[i], 12);
-    if (!hcp.surface[i]) {
+    if (!hcp.flags[i]) {
       EXPECT_EQ(nearest[i], 12);
       ++full;
     }
@@ -177,7 +177,7 @@ TEST(CylinderFill, InertiaTendsToAnalytic) {
   expectConverges(transverse, rel, 2.5);
   // side particles point radially, cap particles along the axis
   for (std::size_t i = 0; i < c.size(); ++i) {
-    if (!c.surface[i]) continue;
+    if (!c.flags[i]) continue;
     const Vec3& p = c.positions[i];
     const Vec3& n = c.normals[i];
     EXPECT_NEAR(n.norm(), 1.0, 1e-12);
@@ -210,7 +210,7 @@ TEST(CapsuleFill, MassAndAxisInertia) {
   }
   expectConverges(errors, rel, 2.5);
   for (std::size_t i = 0; i < c.size(); ++i)
-    if (c.surface[i]) {
+    if (c.flags[i]) {
       const Vec3& p = c.positions[i];
       const Vec3 axis(0, 0, std::clamp(p.z(), -0.4, 0.4));
       EXPECT_NEAR(c.normals[i].dot((p - axis).normalized()), 1.0, 1e-12);
@@ -230,7 +230,7 @@ TEST(MeshFill, LShapeMatchesAnalyticMassAndCentre) {
   EXPECT_LT((mp.centre - Vec3(0.22, 0.22, 0.1)).norm(), 1e-12);
   // the particle in the inner corner of the L lies on the top and bottom faces only
   for (std::size_t i = 0; i < c.size(); ++i) {
-    EXPECT_TRUE(c.surface[i]);  // two layers thick: every particle touches a face
+    EXPECT_TRUE(c.flags[i]);  // two layers thick: every particle touches a face
     if ((c.positions[i] - Vec3(0.15, 0.15, 0.05)).norm() < 1e-9) {
       EXPECT_LT((c.normals[i] - Vec3(0, 0, -1)).norm(), 1e-12) << c.normals[i].transpose();
     }
@@ -271,15 +271,18 @@ TEST(ParticleList, ExplicitConnectorsAreKeptAndChecked) {
   EXPECT_NE(range.error().message.find("expected indices below 3"), std::string::npos);
 }
 
-TEST(ParticleList, ReachConnectsNeighboursAndEstimatesEndNormals) {
+TEST(ParticleList, ReachConnectsNeighboursAndMakesAChainALine) {
   ParticleListSettings s;
   for (int i = 0; i < 5; ++i) s.positions.emplace_back(0.1 * i, 0, 0);
   s.radii = {0.05};
   auto c = buildParticleList(s);
   ASSERT_TRUE(c.ok());
   EXPECT_EQ(c->connectors.size(), 4u);  // default reach 1.5 diameters: nearest neighbours only
-  EXPECT_LT((c->normals[0] - Vec3(-1, 0, 0)).norm(), 1e-12);
-  EXPECT_LT((c->normals[4] - Vec3(1, 0, 0)).norm(), 1e-12);
+  // a chain one particle thick: every particle is on the surface all round, its "normal" the chain's direction
+  for (std::size_t i = 0; i < 5; ++i) {
+    EXPECT_EQ(c->flags[i], kParticleSurface | kParticleLine) << i;
+    EXPECT_LT(std::abs(std::abs(c->normals[i].x()) - 1.0), 1e-12) << i;
+  }
 }
 
 }  // namespace

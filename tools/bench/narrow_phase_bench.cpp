@@ -101,19 +101,19 @@ Shape makeShape(SourceShape s, const volpar::SolidShape& solid, double r) {
 }
 
 Shape box() {
-  SourceShape s{SourceShape::Kind::Box, Vec3(0.4, 0.3, 0.3), 0, 0, {}};
+  SourceShape s{SourceShape::Kind::Box, Vec3(0.4, 0.3, 0.3), 0, 0, Vec3::Zero(), {}};
   return makeShape(s, volpar::BoxShape(s.size), 0.025);
 }
 Shape sphere() {
-  SourceShape s{SourceShape::Kind::Sphere, Vec3::Zero(), 0.25, 0, {}};
+  SourceShape s{SourceShape::Kind::Sphere, Vec3::Zero(), 0.25, 0, Vec3::Zero(), {}};
   return makeShape(s, volpar::SphereShape(0.25), 0.025);
 }
 Shape capsule() {
-  SourceShape s{SourceShape::Kind::Capsule, Vec3::Zero(), 0.12, 0.3, {}};
+  SourceShape s{SourceShape::Kind::Capsule, Vec3::Zero(), 0.12, 0.3, Vec3::Zero(), {}};
   return makeShape(s, volpar::CapsuleShape(0.12, 0.3), 0.02);
 }
 Shape cylinder() {
-  SourceShape s{SourceShape::Kind::Cylinder, Vec3::Zero(), 0.15, 0.4, {}};
+  SourceShape s{SourceShape::Kind::Cylinder, Vec3::Zero(), 0.15, 0.4, Vec3::Zero(), {}};
   return makeShape(s, volpar::CylinderShape(0.15, 0.4), 0.025);
 }
 

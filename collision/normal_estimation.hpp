@@ -1,0 +1,89 @@
+#pragma once
+// Surface normals from the particle neighbourhood alone (DESIGN section 5): for explicit particle lists,
+// for bodies built with `normals: estimated`, for the faces a crack opens and for bodies that deform.
+//
+// For each particle, from its connector neighbours:
+//  - the *missing vector* m = sum over neighbours of (x_p - x_j), which points away from where the
+//    neighbours are (on a lattice it is the sum of the missing neighbour directions);
+//  - the shape of the neighbourhood: neighbours in a plane through the particle make it part of a *sheet*
+//    (a layer one particle thick: both sides are surface; with a clear in-plane m it is on the sheet's rim),
+//    neighbours on a line make it part of a *line* (a chain), no neighbours a lone *point*; otherwise the
+//    particle is in a volume, and on its surface when it has fewer than four neighbours, when |m| exceeds
+//    15 % of the sum of its neighbour distances (0.15 x count x mean distance), or when a connector of it
+//    broke (it lies on a crack face).
+// A volume surface particle's normal is the best-fit plane (least-squares, the smallest principal axis) of
+// the surface particles within two connector hops whose missing vectors lie within 60 degrees of its own,
+// oriented along m: on a lattice face that plane is the face exactly, on a staircase (a face oblique to the
+// lattice, a crack across it) and on a curved surface it averages the steps. Where those particles are not
+// close to a plane (the smallest principal variance above 10 % of the middle one) the particle sits on an
+// edge or a corner: its faces are the normals of the planar surface particles within two hops that face
+// its way, clustered within 20 degrees; two clusters make an edge, three or more a corner (the three
+// largest are kept), and its normal is the mean of its faces, as the builders give a shape's edges.
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "engine/core/ids.hpp"
+#include "engine/core/particle_store.hpp"
+#include "engine/core/types.hpp"
+
+namespace volpar {
+
+/// The estimated surface at one particle.
+struct SurfaceEstimate {
+  std::uint8_t flags = 0;            ///< ParticleFlag bits; 0 for an interior particle
+  Vec3 normal = Vec3::Zero();        ///< unit outward normal (sheet: one side; rim: in-plane outwards; line:
+                                     ///< the chain's direction; zero for a lone point or an interior particle)
+  std::array<Vec3, 3> faces{Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  ///< the faces it lies on (sheets: both sides)
+  std::uint8_t faceCount = 0;
+};
+
+/// The particles and their connector adjacency, over one index space.
+struct Neighbourhood {
+  std::span<const Vec3> positions;         ///< [N], any frame
+  std::span<const std::uint32_t> start;    ///< [N + 1], CSR offsets into `neighbours`
+  std::span<const ParticleId> neighbours;  ///< the neighbours of i are neighbours[start[i] .. start[i + 1])
+  std::span<const std::uint8_t> opened;    ///< [N] or empty: non-zero where a particle lost a connector
+};
+
+/// Estimates particles' surfaces (see the file notes). Keeps scratch between calls: estimating a few
+/// particles costs their two-hop neighbourhoods, never the whole index space.
+class SurfaceEstimator {
+ public:
+  /// The estimates of `targets` (indices into the neighbourhood), in their order.
+  void estimate(const Neighbourhood& nb, std::span<const ParticleId> targets, std::vector<SurfaceEstimate>& out);
+
+ private:
+  struct Raw {
+    Vec3 missing = Vec3::Zero();
+    Vec3 axis = Vec3::Zero();  // sheet: its normal; line: its direction
+    double meanDistance = 0.0;
+    std::uint8_t kind = 0;     // kInterior, kVolume, kSheet, kRim, kLine, kPoint
+  };
+  struct Fit {
+    bool planar = false;
+    Vec3 normal = Vec3::Zero();
+  };
+  const Raw& raw(const Neighbourhood& nb, std::uint32_t i);
+  const Fit& fit(const Neighbourhood& nb, std::uint32_t i);
+  void twoRing(const Neighbourhood& nb, std::uint32_t i, std::vector<std::uint32_t>& out);
+  void grow(std::size_t n);
+
+  std::vector<Raw> raw_;
+  std::vector<Fit> fit_;
+  std::vector<std::uint32_t> rawStamp_, fitStamp_, mark_;
+  std::uint32_t stamp_ = 0, markStamp_ = 0;
+ public:
+  int rings_ = 2;
+ private:
+  std::vector<std::uint32_t> ring_, frontier_, next_, fitRing_;
+  std::vector<Vec3> points_;
+};
+
+/// Estimates every particle of a cloud given by positions and connector pairs (i, j).
+[[nodiscard]] std::vector<SurfaceEstimate> estimateSurface(std::span<const Vec3> positions,
+                                                           std::span<const std::array<std::uint32_t, 2>> connectors);
+
+}  // namespace volpar

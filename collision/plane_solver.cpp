@@ -1,0 +1,892 @@
+#include "collision/plane_solver.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace volpar {
+
+namespace {
+
+constexpr double kFacing = 0.05;      // a neighbour's normal faces the other side: n . d above this
+constexpr double kFlat = 0.99985;     // cos 1 degree: the normals of a flat side agree within this
+
+}  // namespace
+
+void PlaneSolver::ring(const NarrowPhaseInput& in, std::span<const ParticleId> seeds, int k, std::vector<ParticleId>& out,
+                       std::vector<std::uint32_t>& mark, std::uint32_t& stamp, std::vector<ParticleId>& frontier,
+                       std::vector<ParticleId>& next) {
+  out.clear();
+  if (mark.size() < in.particles->size()) mark.resize(in.particles->size(), 0);
+  if (++stamp == 0) {  // wrapped: clear the marks
+    std::fill(mark.begin(), mark.end(), 0u);
+    stamp = 1;
+  }
+  frontier.clear();
+  for (const ParticleId s : seeds) {
+    if (mark[s.index()] == stamp) continue;
+    mark[s.index()] = stamp;
+    out.push_back(s);
+    frontier.push_back(s);
+  }
+  for (int r = 0; r < k; ++r) {
+    next.clear();
+    for (const ParticleId p : frontier)
+      for (const ParticleId n : in.finder->neighbours(p)) {
+        if (mark[n.index()] == stamp) continue;
+        mark[n.index()] = stamp;
+        out.push_back(n);
+        next.push_back(n);
+      }
+    std::swap(frontier, next);
+  }
+}
+
+void PlaneSolver::gather(const NarrowPhaseInput& in, Side& side, int rings) {
+  ring(in, side.particles, rings, ringIds_, mark_, stamp_, frontier_, next_);
+  const ParticleStore& p = *in.particles;
+  side.local.resize(ringIds_.size());
+  for (std::size_t i = 0; i < ringIds_.size(); ++i) {
+    const ParticleId q = ringIds_[i];
+    Local& l = side.local[i];
+    l.x = p.position[q.index()];
+    l.r = p.radius[q.index()];
+    l.id = q;
+    l.flags = p.flags[q.index()];
+    l.own = i < side.particles.size();
+    l.faceCount = 0;
+    l.n = Vec3::Zero();
+    const std::int32_t k = p.normalIndex[q.index()];
+    if (k >= 0) {
+      const Quat& r = in.bodies->state[p.body[q.index()].index()].orientation;
+      l.n = r * (*in.normals)[k];
+      const std::span<const Vec3> f = in.normals->faces(k);
+      l.faceCount = static_cast<std::uint8_t>(f.size());
+      for (std::size_t j = 0; j < f.size(); ++j) l.faces[j] = r * f[j];
+    } else {
+      l.flags = static_cast<std::uint8_t>(l.flags & ~kParticleSurface);
+    }
+  }
+}
+
+Vec3 PlaneSolver::facing(const Local& q, const Vec3& towards) {
+  return facingNormal(q.flags, q.n, std::span<const Vec3>(q.faces.data(), q.faceCount), towards);
+}
+
+bool PlaneSolver::counts(const Local& q, const Vec3& towards) {
+  if (q.own || !(q.flags & kParticleSurface) || (q.flags & (kParticleSheet | kParticleLine)) || q.n.isZero()) return true;
+  return q.n.dot(towards) > kFacing;
+}
+
+bool PlaneSolver::select(Side& side, const Vec3& towards) {
+  bool changed = false;
+  std::size_t k = 0;
+  for (std::uint32_t i = 0; i < side.local.size(); ++i) {
+    if (!counts(side.local[i], towards)) continue;
+    if (k >= side.hullLocal.size() || side.hullLocal[k] != i) changed = true;
+    if (k < side.hullLocal.size()) side.hullLocal[k] = i;
+    else side.hullLocal.push_back(i);
+    ++k;
+  }
+  changed = changed || k != side.hullLocal.size();
+  side.hullLocal.resize(k);
+  side.hull.resize(k);
+  for (std::size_t j = 0; j < k; ++j) side.hull[j] = side.local[side.hullLocal[j]].x;
+  return changed;
+}
+
+PlaneSolver::Evaluation PlaneSolver::evaluate(const Vec3& n) const {
+  double maxA = -std::numeric_limits<double>::infinity(), reachA = maxA;
+  double minB = std::numeric_limits<double>::infinity(), reachB = minB;
+  for (const Local& q : a_.local) {
+    if (!counts(q, n)) continue;
+    const double h = n.dot(q.x);
+    maxA = std::max(maxA, h);
+    reachA = std::max(reachA, h + q.r);
+  }
+  for (const Local& q : b_.local) {
+    if (!counts(q, -n)) continue;
+    const double h = n.dot(q.x);
+    minB = std::min(minB, h);
+    reachB = std::min(reachB, h - q.r);
+  }
+  return {minB - maxA, reachB - reachA};
+}
+
+bool PlaneSolver::featureNormal(const Side& side, const HullDistance& h, bool isA, const Vec3& towards, Vec3& normal,
+                                bool& flat) const {
+  // the feature's particles with their barycentric weights; the surface normal at the closest point is
+  // interpolated from those not on an edge or corner
+  Vec3 sum = Vec3::Zero();
+  double weight = 0.0;
+  for (int k = 0; k < h.count; ++k) {
+    const std::uint32_t hi = isA ? h.indexA[static_cast<std::size_t>(k)] : h.indexB[static_cast<std::size_t>(k)];
+    const Local& q = side.local[side.hullLocal[hi]];
+    if (!(q.flags & kParticleSurface) || (q.flags & kParticleSharp) || q.n.isZero()) continue;
+    if ((q.flags & kParticleSheet) && (q.flags & kParticleEdge)) continue;  // a sheet's rim
+    const double w = h.weight[static_cast<std::size_t>(k)];
+    sum += w * facing(q, towards);
+    weight += w;
+  }
+  if (!(weight > 0.0) || !(sum.norm() > 1e-12)) return false;
+  normal = sum.normalized();
+  // flat: the normals of the side's counted surface particles near the closest point all agree
+  const Vec3& at = isA ? h.pointA : h.pointB;
+  const double reach = 3.0 * side.meanRadius;
+  flat = true;
+  for (const std::uint32_t i : side.hullLocal) {
+    const Local& q = side.local[i];
+    if (!(q.flags & kParticleSurface) || (q.flags & kParticleSharp) || q.n.isZero()) continue;
+    if ((q.x - at).squaredNorm() > reach * reach) continue;
+    if (facing(q, towards).dot(normal) < kFlat) {
+      flat = false;
+      break;
+    }
+  }
+  return true;
+}
+
+PlaneSolver::Feature PlaneSolver::sharpFeature(const Side& side, const HullDistance& h, bool isA) const {
+  // the faces common to the feature's edge and corner particles
+  std::array<Vec3, 3> common{};
+  std::size_t count = 0;
+  bool first = true;
+  for (int k = 0; k < h.count; ++k) {
+    const std::uint32_t hi = isA ? h.indexA[static_cast<std::size_t>(k)] : h.indexB[static_cast<std::size_t>(k)];
+    const Local& q = side.local[side.hullLocal[hi]];
+    if (!(q.flags & (kParticleEdge | kParticleCorner)) || (q.flags & kParticleSheet) || q.faceCount < 2) continue;
+    if (first) {
+      for (std::size_t f = 0; f < q.faceCount; ++f) common[f] = q.faces[f];
+      count = q.faceCount;
+      first = false;
+      continue;
+    }
+    std::size_t kept = 0;
+    for (std::size_t f = 0; f < count; ++f) {
+      bool shared = false;
+      for (std::size_t g = 0; g < q.faceCount; ++g) shared = shared || common[f].dot(q.faces[g]) > kFlat;
+      if (shared) common[kept++] = common[f];
+    }
+    count = kept;
+  }
+  Feature out;
+  if (count < 2) return out;
+  // each face plane through the outermost counted particle along its normal
+  std::array<double, 3> offset{};
+  for (std::size_t f = 0; f < count; ++f) {
+    offset[f] = -std::numeric_limits<double>::infinity();
+    for (const std::uint32_t i : side.hullLocal) offset[f] = std::max(offset[f], common[f].dot(side.local[i].x));
+  }
+  const Vec3& at = isA ? h.pointA : h.pointB;
+  if (count == 3) {
+    Mat3 m;
+    for (int f = 0; f < 3; ++f) m.row(f) = common[static_cast<std::size_t>(f)].transpose();
+    if (!(std::abs(m.determinant()) > 1e-6)) return out;
+    out.kind = 1;
+    out.point = m.partialPivLu().solve(Vec3(offset[0], offset[1], offset[2]));
+    return out;
+  }
+  const Vec3 e = common[0].cross(common[1]);
+  if (!(e.norm() > 1e-3)) return out;
+  // the point of the line nearest to `at`: at + a f1 + b f2 on both planes
+  const double g = common[0].dot(common[1]);
+  const double r1 = offset[0] - common[0].dot(at), r2 = offset[1] - common[1].dot(at);
+  const double det = 1.0 - g * g;
+  out.kind = 2;
+  out.direction = e.normalized();
+  out.point = at + ((r1 - g * r2) / det) * common[0] + ((r2 - g * r1) / det) * common[1];
+  return out;
+}
+
+namespace {
+
+/// The vertices of the polytope n . x <= d of `planes` (duplicates merged) into `out`.
+void polytopeVertices(const std::vector<std::pair<Vec3, double>>& planes, double scale, std::vector<Vec3>& out) {
+  out.clear();
+  const std::size_t n = planes.size();
+  const double tol = 1e-9 * scale;
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = i + 1; j < n; ++j) {
+      const Vec3 ij = planes[i].first.cross(planes[j].first);
+      if (!(ij.squaredNorm() > 1e-12)) continue;
+      for (std::size_t k = j + 1; k < n; ++k) {
+        const double det = ij.dot(planes[k].first);
+        if (!(std::abs(det) > 1e-6)) continue;
+        // Cramer's rule for the three planes
+        const Vec3 x = (planes[i].second * planes[j].first.cross(planes[k].first) +
+                        planes[j].second * planes[k].first.cross(planes[i].first) + planes[k].second * ij) /
+                       det;
+        bool inside = true;
+        for (std::size_t m = 0; m < n && inside; ++m) inside = planes[m].first.dot(x) <= planes[m].second + tol;
+        if (!inside) continue;
+        bool seen = false;
+        for (const Vec3& v : out) seen = seen || (v - x).squaredNorm() <= 100.0 * tol * tol;
+        if (!seen) out.push_back(x);
+      }
+    }
+}
+
+}  // namespace
+
+bool PlaneSolver::flatCluster(const FaceCluster& c, double spacing) {
+  if (c.count < 2) return false;
+  // the members' spread across the normal: a line of them is a ruling of a curved surface
+  const Vec3 n = c.sum.normalized();
+  const Vec3 mean = c.position / c.count;
+  const Mat3 cov = c.spread / c.count - mean * mean.transpose();
+  const Mat3 across = (Mat3::Identity() - n * n.transpose()) * cov * (Mat3::Identity() - n * n.transpose());
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(across, Eigen::EigenvaluesOnly);
+  return eig.eigenvalues()[1] > 0.04 * spacing * spacing || c.sharp;
+}
+
+double PlaneSolver::faceSupport(const NarrowPhaseInput& in, const Vec3& f, ParticleId from) {
+  const ParticleStore& p = *in.particles;
+  const auto carries = [&](ParticleId q) {
+    const std::int32_t k = p.normalIndex[q.index()];
+    if (k < 0) return false;
+    const Quat& r = in.bodies->state[p.body[q.index()].index()].orientation;
+    if (Vec3(r * (*in.normals)[k]).dot(f) > kFlat) return true;
+    for (const Vec3& face : in.normals->faces(k))
+      if (Vec3(r * face).dot(f) > kFlat) return true;
+    return false;
+  };
+  ParticleId at = from;
+  double best = f.dot(p.position[at.index()]);
+  for (int step = 0; step < 16; ++step) {
+    ParticleId next = at;
+    for (const ParticleId nb : in.finder->neighbours(at)) {
+      const double h = f.dot(p.position[nb.index()]);
+      if (h > best + 1e-9 * p.radius[nb.index()] && carries(nb)) {
+        best = h;
+        next = nb;
+      }
+    }
+    if (next == at) break;
+    at = next;
+  }
+  return best;
+}
+
+bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const Vec3& at, const Vec3& towards,
+                            std::vector<Vec3>& out, bool& curved) {
+  curved = false;
+  out.clear();
+  const double spacing = 2.0 * side.meanRadius;
+  const double nearReach = 1.5 * spacing;
+  clusters_.clear();
+  const auto addFace = [&](const Vec3& f, const Vec3& x, bool sharp, bool near) {
+    for (FaceCluster& c : clusters_)
+      if (c.first.dot(f) > kFlat) {
+        c.sum += f;
+        c.position += x;
+        c.spread += x * x.transpose();
+        ++c.count;
+        c.sharp = c.sharp || sharp;
+        c.near = c.near || near;
+        return;
+      }
+    clusters_.push_back({f, f, x, x * x.transpose(), 1, sharp, near});
+  };
+  for (const std::uint32_t i : side.hullLocal) {
+    const Local& q = side.local[i];
+    if (!(q.flags & kParticleSurface) || (q.flags & kParticleLine) || q.n.isZero()) continue;
+    const bool near = (q.x - at).squaredNorm() <= nearReach * nearReach;
+    if (q.flags & kParticleSheet) {
+      // a sheet: the side facing the contact, and its rim
+      addFace(facing(q, towards), q.x, false, near);
+      if ((q.flags & kParticleEdge) && q.faceCount == 3) addFace(q.faces[2], q.x, true, near);
+      continue;
+    }
+    if (q.flags & (kParticleEdge | kParticleCorner)) {
+      for (std::size_t f = 0; f < q.faceCount; ++f) addFace(q.faces[f], q.x, true, near);
+      continue;
+    }
+    addFace(q.n, q.x, false, near);
+  }
+  if (clusters_.empty()) return false;
+  // flat faces: normals shared by several particles or by an edge; curved: many distinct normals near `at`
+  bool flatNear = false;
+  int distinctNear = 0;
+  for (const FaceCluster& c : clusters_) {
+    const bool flat = flatCluster(c, spacing);
+    if (c.near) {
+      flatNear = flatNear || flat;
+      ++distinctNear;
+    }
+  }
+  // which particles lie on flat faces (the curvature fit leaves them out)
+  flatLocal_.assign(side.local.size(), 0);
+  for (const std::uint32_t i : side.hullLocal) {
+    const Local& q = side.local[i];
+    if (!(q.flags & kParticleSurface) || q.n.isZero()) continue;
+    if (q.flags & (kParticleSharp | kParticleSheet)) {
+      flatLocal_[i] = 1;
+      continue;
+    }
+    for (const FaceCluster& c : clusters_)
+      if (c.first.dot(q.n) > kFlat) {
+        flatLocal_[i] = flatCluster(c, spacing) ? 1 : 0;
+        break;
+      }
+  }
+  if (!flatNear && distinctNear >= 3 && curvatureCentres(side, at, towards, out)) {
+    curved = true;
+    return true;
+  }
+  // the polytope: each face plane through the outermost counted centre along it, boxed in around `at`
+  planes_.clear();
+  for (const FaceCluster& c : clusters_) {
+    const bool flat = flatCluster(c, spacing);
+    if (!flat && !c.near) continue;
+    const Vec3 n = c.sum.normalized();
+    double d = -std::numeric_limits<double>::infinity();
+    std::uint32_t top = side.hullLocal.front();
+    for (const std::uint32_t i : side.hullLocal)
+      if (const double h = n.dot(side.local[i].x); h > d) {
+        d = h;
+        top = i;
+      }
+    if (flat) d = std::max(d, faceSupport(in, n, side.local[top].id));
+    planes_.emplace_back(n, d);
+  }
+  const double box = 12.0 * side.meanRadius;
+  for (int k = 0; k < 3; ++k) {
+    planes_.emplace_back(Vec3::Unit(k), at[k] + box);
+    planes_.emplace_back(-Vec3::Unit(k), box - at[k]);
+  }
+  polytopeVertices(planes_, box + at.norm(), out);
+  return !out.empty();
+}
+
+bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3& towards, std::vector<Vec3>& out) const {
+  // least squares: the point c nearest to the lines x_i + t n_i, sum (I - n_i n_i^T) c = sum (I - n_i n_i^T) x_i
+  out.clear();
+  const double reach = 6.0 * side.meanRadius;
+  Mat3 m = Mat3::Zero(), normals = Mat3::Zero();
+  Vec3 rhs = Vec3::Zero();
+  int count = 0;
+  for (const std::uint32_t i : side.hullLocal) {
+    const Local& q = side.local[i];
+    if (!(q.flags & kParticleSurface) || (q.flags & kParticleSharp) || q.n.isZero()) continue;
+    if ((q.flags & kParticleSheet) && (q.flags & kParticleEdge)) continue;
+    if (i < flatLocal_.size() && flatLocal_[i]) continue;
+    if ((q.x - at).squaredNorm() > reach * reach) continue;
+    const Vec3 n = facing(q, towards);
+    if (!(n.dot(towards) > kFacing)) continue;
+    const Mat3 p = Mat3::Identity() - n * n.transpose();
+    m += p;
+    rhs += p * q.x;
+    normals += n * n.transpose();
+    ++count;
+  }
+  if (count < 4) return false;
+  // the normals spread over a cone (a surface curved both ways) or a fan in one plane (curved one way:
+  // a cylinder, whose axis is the plane's normal)
+  const Eigen::SelfAdjointEigenSolver<Mat3> spread(normals);
+  if (!(spread.eigenvalues()[1] > 1e-6 * spread.eigenvalues()[2])) return false;  // all alike: flat
+  const bool cylinder = spread.eigenvalues()[0] < 0.1 * spread.eigenvalues()[1];
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(m);
+  const Vec3 mu = eig.eigenvalues();
+  if (!(mu[0] > 1e-12 * mu[2])) return false;
+  Vec3 c = Vec3::Zero();
+  for (int k = 0; k < 3; ++k) c += eig.eigenvectors().col(k).dot(rhs) / mu[k] * eig.eigenvectors().col(k);
+  if (cylinder) {
+    const Vec3 axis = spread.eigenvectors().col(0);
+    const double half = 20.0 * side.meanRadius;
+    out.push_back(c - half * axis);
+    out.push_back(c + half * axis);
+  } else {
+    out.push_back(c);
+  }
+  return c.allFinite();
+}
+
+PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, const Vec3& d0) {
+  Choice out;
+  out.open = true;
+  select(a_, d0);
+  select(b_, -d0);
+  if (a_.hull.empty() || b_.hull.empty()) return out;
+  hull_ = hullDistance(a_.hull, b_.hull);
+  if (!hull_.separated) return out;
+  // the counted particles along the hulls' direction, and the closest points again if they changed
+  const Vec3 d1 = hull_.direction;
+  const bool changed = select(a_, d1) | select(b_, -d1);
+  if (changed) {
+    const HullDistance again = hullDistance(a_.hull, b_.hull);
+    if (!again.separated) {
+      select(a_, d0);
+      select(b_, -d0);
+    } else {
+      hull_ = again;
+    }
+  }
+  const Vec3 nG = hull_.direction;
+  out.found = true;
+  out.normal = nG;
+  out.source = NormalSource::Separation;
+  // the sides' cores near the closest points, rebuilt from the faces their particles carry
+  bool curvedA = false, curvedB = false;
+  const bool coreA = localCore(in, a_, hull_.pointA, nG, coreA_, curvedA);
+  const bool coreB = localCore(in, b_, hull_.pointB, -nG, coreB_, curvedB);
+  if (coreA || coreB) {
+    const HullDistance c = hullDistance(coreA ? std::span<const Vec3>(coreA_) : std::span<const Vec3>(a_.hull),
+                                        coreB ? std::span<const Vec3>(coreB_) : std::span<const Vec3>(b_.hull));
+    if (c.separated && c.direction.dot(nG) > 0.5) {
+      out.normal = c.direction;
+      out.source = NormalSource::Surface;
+      // corner on corner: two points, their line is all the geometry says
+      int pointsA = 0, pointsB = 0;
+      for (int k = 0; k < c.count; ++k) {
+        bool seenA = false, seenB = false;
+        for (int l = 0; l < k; ++l) {
+          seenA = seenA || c.indexA[static_cast<std::size_t>(l)] == c.indexA[static_cast<std::size_t>(k)];
+          seenB = seenB || c.indexB[static_cast<std::size_t>(l)] == c.indexB[static_cast<std::size_t>(k)];
+        }
+        pointsA += seenA ? 0 : 1;
+        pointsB += seenB ? 0 : 1;
+      }
+      out.open = coreA && coreB && !curvedA && !curvedB && pointsA == 1 && pointsB == 1;
+      return out;
+    }
+  }
+  Vec3 nA, nB;
+  bool flatA = false, flatB = false;
+  const bool surfA = featureNormal(a_, hull_, true, nG, nA, flatA);
+  const bool surfB = featureNormal(b_, hull_, false, -nG, nB, flatB);
+  out.sharpA = !surfA;
+  out.sharpB = !surfB;
+  if (!surfA && !surfB) {
+    // edge on edge: across both edges; edge and corner: from the line to the point; corner and corner:
+    // between the points; where a feature cannot be rebuilt, the hulls' direction
+    const Feature fa = sharpFeature(a_, hull_, true), fb = sharpFeature(b_, hull_, false);
+    Vec3 n = Vec3::Zero();
+    if (fa.kind == 2 && fb.kind == 2) {
+      const Vec3 cross = fa.direction.cross(fb.direction);
+      if (cross.norm() > 0.1) {
+        n = cross.normalized();
+        if (n.dot(nG) < 0.0) n = -n;
+      } else {
+        const Vec3 d = fb.point - fa.point;
+        n = d - d.dot(fa.direction) * fa.direction;
+      }
+    } else if (fa.kind == 2 && fb.kind == 1) {
+      const Vec3 d = fb.point - fa.point;
+      n = d - d.dot(fa.direction) * fa.direction;
+    } else if (fa.kind == 1 && fb.kind == 2) {
+      const Vec3 d = fb.point - fa.point;
+      n = d - d.dot(fb.direction) * fb.direction;
+    } else if (fa.kind == 1 && fb.kind == 1) {
+      n = fb.point - fa.point;
+    }
+    if (n.norm() > 1e-9 && n.normalized().dot(nG) > 0.5) {
+      out.normal = n.normalized();
+      out.source = NormalSource::Surface;
+      out.open = fa.kind != 2 && fb.kind != 2;  // (an edge fixes the normal's plane)
+    }
+    return out;
+  }
+  // a curved side is a sphere (or cylinder) about its centres of curvature: the normal is the closest-point
+  // direction of those centres and the other side (its centres, when curved too)
+  flatLocal_.clear();  // (no face clusters here: every non-sharp particle takes part)
+  curvedA = surfA && !flatA && curvatureCentres(a_, hull_.pointA, nG, centresA_);
+  curvedB = surfB && !flatB && curvatureCentres(b_, hull_.pointB, -nG, centresB_);
+  Vec3 n = Vec3::Zero();
+  if (curvedA || curvedB) {
+    const HullDistance c = hullDistance(curvedA ? std::span<const Vec3>(centresA_) : std::span<const Vec3>(a_.hull),
+                                        curvedB ? std::span<const Vec3>(centresB_) : std::span<const Vec3>(b_.hull));
+    if (c.separated) n = c.direction;
+  }
+  if (n.isZero()) {
+    if (surfA && !surfB) {
+      n = nA;
+    } else if (surfB && !surfA) {
+      n = -nB;
+    } else if (flatA != flatB) {
+      n = flatA ? nA : Vec3(-nB);
+    } else if (flatA) {
+      // two flat faces: the one across which the particles are farther apart
+      n = evaluate(nA).separation >= evaluate(-nB).separation ? nA : Vec3(-nB);
+    } else {
+      n = (nA - nB).normalized();
+    }
+  }
+  if (!(n.dot(nG) > 0.0)) return out;
+  out.normal = n;
+  out.source = NormalSource::Surface;
+  out.open = false;
+  return out;
+}
+
+bool PlaneSolver::lookAhead(const NarrowPhaseInput& in, bool single, Vec3& normal, PlaneCase& predicted,
+                            NarrowPhaseStats& stats) {
+  const ParticleStore& p = *in.particles;
+  const BodyStore& bodies = *in.bodies;
+  // each local particle's velocity: its rigid body's motion at it, a deformable particle's own
+  const auto velocity = [&](const Local& q) -> Vec3 {
+    const BodyId b = p.body[q.id.index()];
+    switch (bodies.info[b.index()].kind) {
+      case BodyKind::Static: return Vec3::Zero();
+      case BodyKind::Deformable: return p.velocity[q.id.index()];
+      default: {
+        const BodyState& s = bodies.state[b.index()];
+        return s.linearVelocity + s.angularVelocity.cross(q.x - s.position);
+      }
+    }
+  };
+  velocityA_.resize(a_.local.size());
+  velocityB_.resize(b_.local.size());
+  for (std::size_t i = 0; i < a_.local.size(); ++i) velocityA_[i] = velocity(a_.local[i]);
+  for (std::size_t j = 0; j < b_.local.size(); ++j) velocityB_[j] = velocity(b_.local[j]);
+  // a pair at rest has nothing to foresee
+  double fastest = 0.0;
+  for (const Vec3& v : velocityA_) fastest = std::max(fastest, v.squaredNorm());
+  for (const Vec3& v : velocityB_) fastest = std::max(fastest, v.squaredNorm());
+  events_.clear();
+  if (!(fastest > 1e-18)) return false;
+  ++stats.lookAheads;
+  // the time each pair of local spheres not yet touching meets, within the horizon: |d + t v| = r_i + r_j
+  const double horizon = 8.0 * in.dt;
+  for (std::uint32_t i = 0; i < a_.local.size(); ++i)
+    for (std::uint32_t j = 0; j < b_.local.size(); ++j) {
+      const Vec3 d = b_.local[j].x - a_.local[i].x;
+      const Vec3 v = velocityB_[j] - velocityA_[i];
+      const double rs = a_.local[i].r + b_.local[j].r;
+      const double c = d.squaredNorm() - rs * rs;
+      const double a = v.squaredNorm(), bb = d.dot(v);
+      if (!(c > 0.0) || !(a > 1e-18) || !(bb < 0.0)) continue;
+      const double disc = bb * bb - a * c;
+      if (disc < 0.0) continue;
+      const double t = (-bb - std::sqrt(disc)) / a;
+      if (t > 0.0 && t <= horizon) events_.push_back({t, i, j});
+    }
+  if (events_.empty()) return false;
+  std::sort(events_.begin(), events_.end(), [](const Event& x, const Event& y) {
+    return x.time != y.time ? x.time < y.time : (x.i != y.i ? x.i < y.i : x.j < y.j);
+  });
+  // the configuration after each new contact, until it has a plane of its own: two contacts for a single
+  // contact, an edge on a face for parallel edges
+  const auto at = [&](const Side& side, const std::vector<Vec3>& v, std::uint32_t k, double t) -> Vec3 {
+    return side.local[k].x + t * v[k];
+  };
+  for (std::size_t e = 0; e < events_.size(); ++e) {
+    const double t = events_[e].time;
+    if (e + 1 < events_.size() && events_[e + 1].time == t) continue;  // take simultaneous contacts together
+    aheadA_.particles.clear();
+    aheadB_.particles.clear();
+    aheadA_.points.clear();
+    aheadB_.points.clear();
+    const auto addPair = [&](std::uint32_t i, std::uint32_t j) {
+      if (std::find(aheadA_.particles.begin(), aheadA_.particles.end(), a_.local[i].id) == aheadA_.particles.end()) {
+        aheadA_.particles.push_back(a_.local[i].id);
+        aheadA_.points.push_back(at(a_, velocityA_, i, t));
+      }
+      if (std::find(aheadB_.particles.begin(), aheadB_.particles.end(), b_.local[j].id) == aheadB_.particles.end()) {
+        aheadB_.particles.push_back(b_.local[j].id);
+        aheadB_.points.push_back(at(b_, velocityB_, j, t));
+      }
+    };
+    // the patch's own contacts (the own particles come first in `local`) and the new ones so far
+    std::size_t pairs = 0;
+    for (std::uint32_t i = 0; i < a_.particles.size(); ++i)
+      for (std::uint32_t j = 0; j < b_.particles.size(); ++j) {
+        const double rs = a_.local[i].r + b_.local[j].r;
+        if ((at(b_, velocityB_, j, t) - at(a_, velocityA_, i, t)).squaredNorm() < rs * rs) {
+          addPair(i, j);
+          ++pairs;
+        }
+      }
+    for (std::size_t k = 0; k <= e; ++k) {
+      addPair(events_[k].i, events_[k].j);
+      ++pairs;
+    }
+    aheadA_.meanRadius = a_.meanRadius;
+    aheadB_.meanRadius = b_.meanRadius;
+    describe(aheadA_);
+    describe(aheadB_);
+    const PlaneCase c = classify(in, aheadA_, aheadB_);
+    const bool resolved = single ? pairs >= 2
+                                 : (c == PlaneCase::EdgeFace23 || c == PlaneCase::EdgeFace33 || c == PlaneCase::FaceFace ||
+                                    c == PlaneCase::VertexFace13);
+    if (!resolved) continue;
+    // the plane of that configuration: the closest points of the counted local particles, moved there
+    coreA_.clear();
+    coreB_.clear();
+    for (const std::uint32_t i : a_.hullLocal) coreA_.push_back(at(a_, velocityA_, i, t));
+    for (const std::uint32_t j : b_.hullLocal) coreB_.push_back(at(b_, velocityB_, j, t));
+    // (the predicted contacts themselves carry the configuration's features)
+    const HullDistance h = hullDistance(aheadA_.points, aheadB_.points);
+    const HullDistance local = hullDistance(coreA_, coreB_);
+    Vec3 n = Vec3::Zero();
+    if (c == PlaneCase::FaceFace || c == PlaneCase::EdgeFace33 || c == PlaneCase::EdgeFace23 || c == PlaneCase::VertexFace13) {
+      // a face in contact: its best-fit plane
+      const Side& face = (!aheadA_.collinear && aheadA_.particles.size() >= 3) ? aheadA_ : aheadB_;
+      n = face.face;
+      if (n.dot(aheadB_.centroid - aheadA_.centroid) < 0.0) n = -n;
+    } else if (local.separated) {
+      n = local.direction;
+    } else if (h.separated) {
+      n = h.direction;
+    }
+    if (n.isZero()) return false;
+    normal = n.normalized();
+    predicted = c;
+    return true;
+  }
+  return false;
+}
+
+void PlaneSolver::describe(Side& side) const {
+  const std::vector<Vec3>& points = side.points;
+  const std::size_t n = points.size();
+  side.centroid = Vec3::Zero();
+  for (const Vec3& x : points) side.centroid += x;
+  side.centroid /= static_cast<double>(std::max<std::size_t>(n, 1));
+  side.line = Vec3::Zero();
+  side.face = Vec3::Zero();
+  side.collinear = true;
+  if (n < 2) return;
+  if (n == 2) {
+    side.line = (points[1] - points[0]).normalized();
+    return;
+  }
+  // best-fit line and plane of the centres
+  Mat3 cov = Mat3::Zero();
+  for (const Vec3& x : points) cov += (x - side.centroid) * (x - side.centroid).transpose();
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov);
+  side.line = eig.eigenvectors().col(2);
+  double farthest = 0.0;
+  for (const Vec3& x : points) {
+    const Vec3 d = x - side.centroid;
+    farthest = std::max(farthest, (d - d.dot(side.line) * side.line).norm());
+  }
+  side.collinear = farthest <= settings_.collinearTolerance * side.meanRadius;
+  if (!side.collinear) side.face = eig.eigenvectors().col(0);
+}
+
+PlaneCase PlaneSolver::classify(const NarrowPhaseInput& in, const Side& a, const Side& b) {
+  const bool aSmall = a.particles.size() <= b.particles.size();
+  const Side& s = aSmall ? a : b;
+  const Side& l = aSmall ? b : a;
+  const std::size_t ns = s.particles.size(), nl = l.particles.size();
+  if (ns == 1) {
+    if (nl == 1) return PlaneCase::VertexFace11;
+    if (l.collinear) {
+      const bool onEdge = (in.particles->flags[s.particles[0].index()] & kParticleEdge) != 0;
+      return onEdge ? PlaneCase::EdgeEdge12 : PlaneCase::VertexFace12;
+    }
+    return PlaneCase::VertexFace13;
+  }
+  if (ns == 2) {
+    if (nl == 2) return PlaneCase::EdgeEdge22;
+    return l.collinear ? PlaneCase::EdgeEdge23 : PlaneCase::EdgeFace23;
+  }
+  if (s.collinear && l.collinear) return PlaneCase::EdgeEdge23;
+  if (s.collinear || l.collinear) return PlaneCase::EdgeFace33;
+  return PlaneCase::FaceFace;
+}
+
+void PlaneSolver::paperCandidates(const NarrowPhaseInput& in, const Vec3& contactDifference, PlaneCase c) {
+  std::vector<Candidate>& cands = candidates_;
+  cands.clear();
+  auto add = [&](const Vec3& v, NormalSource s) {
+    const double len = v.norm();
+    if (len > 1e-9) cands.push_back({v / len, s});
+  };
+  const Side& a = a_;
+  const Side& b = b_;
+  const bool aSmall = a.particles.size() <= b.particles.size();
+  const Side& s = aSmall ? a : b;
+  const Side& l = aSmall ? b : a;
+  if (a.particles.size() >= 3 && !a.collinear) add(a.face, NormalSource::FaceA);
+  if (b.particles.size() >= 3 && !b.collinear) add(b.face, NormalSource::FaceB);
+  if (s.particles.size() >= 2 && l.particles.size() >= 2 && s.collinear && l.collinear) {
+    const Vec3 cross = s.line.cross(l.line);
+    if (cross.norm() > 1e-6) {
+      add(cross, NormalSource::LineLine);
+    } else {  // parallel lines: the perpendicular between them
+      const Vec3 d = b.centroid - a.centroid;
+      add(d - d.dot(a.line) * a.line, NormalSource::LinePerpendicular);
+    }
+  }
+  if (s.particles.size() == 1 && l.particles.size() >= 2 && l.collinear) {
+    const Vec3 v = s.points[0] - l.centroid;
+    add(v - v.dot(l.line) * l.line, NormalSource::LinePerpendicular);
+    add(l.line.cross(contactDifference), NormalSource::LineContactPoints);
+    if (c == PlaneCase::EdgeEdge12) {
+      // the single particle's edge: its neighbours with the same cached normal lie along it
+      const ParticleId q = s.particles[0];
+      const Vec3 nq = cachedWorldNormal(*in.particles, *in.bodies, *in.normals, q);
+      for (const ParticleId nb : in.finder->neighbours(q)) {
+        if ((cachedWorldNormal(*in.particles, *in.bodies, *in.normals, nb) - nq).norm() > 1e-6) continue;
+        add((in.particles->position[nb.index()] - in.particles->position[q.index()]).cross(l.line), NormalSource::NeighbourLine);
+        break;
+      }
+    }
+  }
+  // cached surface normals of each side: the faces behind them, and their mean
+  const auto cached = [&](const Side& side, double sign, NormalSource source) {
+    Vec3 mean = Vec3::Zero();
+    for (std::size_t i = 0; i < side.particles.size() && i < side.local.size(); ++i) {
+      const Local& q = side.local[i];
+      if (q.n.isZero()) continue;
+      mean += q.n;
+      for (std::size_t f = 0; f < q.faceCount; ++f) add(sign * q.faces[f], source);
+    }
+    add(sign * mean, source);
+  };
+  cached(a, 1.0, NormalSource::CachedA);
+  cached(b, -1.0, NormalSource::CachedB);
+  add(b.centroid - a.centroid, NormalSource::CentreLine);
+}
+
+void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::span<const std::uint32_t> idx,
+                        std::span<const std::uint8_t> flipped, ContactPatch& patch, std::span<double> depthAlongNormal,
+                        NarrowPhaseStats& stats) {
+  const ParticleStore& p = *in.particles;
+  const bool isPlane = patch.plane.valid();
+  const auto isFlipped = [&](std::uint32_t ci) { return !flipped.empty() && flipped[ci] != 0; };
+  ++stats.patches;
+
+  // the deepest contact, and the sides' own particles (unique, ascending)
+  std::uint32_t deepest = idx[0];
+  a_.particles.clear();
+  b_.particles.clear();
+  for (const std::uint32_t ci : idx) {
+    const ParticleContact& c = set.contacts[ci];
+    if (c.depth > set.contacts[deepest].depth) deepest = ci;
+    const bool f = isFlipped(ci);
+    a_.particles.push_back(f ? c.b : c.a);
+    if (!isPlane) b_.particles.push_back(f ? c.a : c.b);
+  }
+  for (auto* v : {&a_.particles, &b_.particles}) {
+    std::sort(v->begin(), v->end());
+    v->erase(std::unique(v->begin(), v->end()), v->end());
+  }
+  const ParticleContact& deep = set.contacts[deepest];
+  patch.point = deep.point;
+  patch.lookAhead = false;
+
+  if (isPlane) {
+    // against a plane the plane's own normal is exact
+    const Plane& pl = in.planes[patch.plane.index()];
+    patch.planeCase = PlaneCase::ParticlePlane;
+    patch.normal = -pl.normal;
+    patch.source = NormalSource::Plane;
+    patch.validated = true;
+    patch.margin = std::numeric_limits<double>::infinity();
+    patch.depth = 0.0;
+    for (const std::uint32_t ci : idx) {
+      const ParticleContact& c = set.contacts[ci];
+      depthAlongNormal[ci] = c.depth;
+      patch.depth = std::max(patch.depth, c.depth);
+      patch.margin = std::min(patch.margin, -c.depth);
+    }
+    ++stats.candidates;
+    ++stats.byCase[static_cast<std::size_t>(patch.planeCase)];
+    return;
+  }
+
+  // the paper's case, from the sides' own particles
+  for (Side* side : {&a_, &b_}) {
+    side->points.clear();
+    side->meanRadius = 0.0;
+    for (const ParticleId q : side->particles) {
+      side->points.push_back(p.position[q.index()]);
+      side->meanRadius += p.radius[q.index()];
+    }
+    side->meanRadius /= static_cast<double>(std::max<std::size_t>(side->particles.size(), 1));
+    describe(*side);
+  }
+  patch.planeCase = classify(in, a_, b_);
+  ++stats.byCase[static_cast<std::size_t>(patch.planeCase)];
+
+  // the local particles of both sides, and the plane across which they are farthest apart
+  gather(in, a_, settings_.validationRings);
+  gather(in, b_, settings_.validationRings);
+  Vec3 d0 = Vec3::Zero();
+  for (const std::uint32_t ci : idx) d0 += (isFlipped(ci) ? -1.0 : 1.0) * set.contacts[ci].normal;
+  if (!(d0.norm() > 1e-12)) d0 = b_.centroid - a_.centroid;
+  if (!(d0.norm() > 1e-12)) d0 = deep.normal;
+  d0.normalize();
+  const double rsum = p.radius[deep.a.index()] + p.radius[deep.b.index()];
+  const double tol = settings_.validationTolerance * rsum;
+
+  Vec3 best = d0;
+  NormalSource bestSource = NormalSource::CentreLine;
+  Evaluation bestEval{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  bool valid = false;
+  const Choice plane = separationPlane(in, d0);
+  if (plane.found) {
+    Evaluation e = evaluate(plane.normal);
+    ++stats.candidates;
+    Vec3 n = plane.normal;
+    NormalSource source = plane.source;
+    if (!(e.separation >= -2.0 * tol) && source != NormalSource::Separation) {
+      n = hull_.direction;
+      source = NormalSource::Separation;
+      e = evaluate(n);
+      ++stats.candidates;
+    }
+    best = n;
+    bestSource = source;
+    bestEval = e;
+    valid = e.separation >= -2.0 * tol;
+    // a single contact or parallel edges: where the pair moves, its next contacts may decide
+    const bool single = idx.size() == 1;
+    if (valid && (single || patch.planeCase == PlaneCase::EdgeEdge23)) {
+      Vec3 ahead;
+      PlaneCase predicted;
+      const bool found = lookAhead(in, single, ahead, predicted, stats);
+      if (found && (!single || plane.open)) {
+        if (ahead.dot(d0) < 0.0) ahead = -ahead;
+        const Evaluation ea = evaluate(ahead);
+        ++stats.candidates;
+        if (ea.separation >= -2.0 * tol) {
+          best = ahead;
+          bestEval = ea;
+          patch.lookAhead = true;
+          patch.lookAheadCase = predicted;
+          ++stats.lookAheadsDecided;
+        }
+      }
+    }
+  }
+  if (!valid) {
+    // the local hulls overlap: the paper's candidates, the validated one with the largest margin (or the
+    // one that comes closest to validating)
+    const Vec3 difference = idx.size() >= 2 ? Vec3(set.contacts[idx[1]].point - set.contacts[idx[0]].point) : Vec3::Zero();
+    paperCandidates(in, difference, patch.planeCase);
+    for (Candidate& cand : candidates_) {
+      if (cand.normal.dot(d0) < 0.0) cand.normal = -cand.normal;
+      const Evaluation e = evaluate(cand.normal);
+      ++stats.candidates;
+      const bool ok = e.separation >= -2.0 * tol;
+      if ((ok && (!valid || e.margin > bestEval.margin)) || (!ok && !valid && e.separation > bestEval.separation)) {
+        valid = ok;
+        best = cand.normal;
+        bestSource = cand.source;
+        bestEval = e;
+      }
+    }
+  }
+  patch.normal = best;
+  patch.source = bestSource;
+  patch.margin = bestEval.margin;
+  patch.validated = valid;
+  if (!valid) ++stats.unvalidated;
+
+  // depth of every contact along the normal: r_a + r_b - n . (x_b - x_a), the plane model's overlap, in which
+  // a side's particle tops form a flat face
+  patch.depth = 0.0;
+  for (const std::uint32_t ci : idx) {
+    const ParticleContact& c = set.contacts[ci];
+    const Vec3 n = isFlipped(ci) ? Vec3(-patch.normal) : patch.normal;
+    const double d = p.radius[c.a.index()] + p.radius[c.b.index()] - n.dot(p.position[c.b.index()] - p.position[c.a.index()]);
+    depthAlongNormal[ci] = d;
+    patch.depth = std::max(patch.depth, d);
+  }
+}
+
+}  // namespace volpar
