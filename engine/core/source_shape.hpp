@@ -26,6 +26,9 @@ struct SourceShape {
   /// Convex meshes: the planes n . x <= d of the solid's faces (unit n, shape frame [m]), one per distinct
   /// face plane; empty for a mesh that is not convex (which has no exact reference).
   std::vector<std::pair<Vec3, double>> facePlanes;
+  /// The body's surface normals were estimated from its particles (scene `normals: estimated`, and every
+  /// explicit particle list), not taken from the solid.
+  bool estimatedNormals = false;
 
   [[nodiscard]] bool isPrimitive() const { return kind != Kind::None && kind != Kind::Mesh; }
   /// A primitive or a convex mesh: a solid whose core has an exact closest-point reference.

@@ -60,7 +60,11 @@ std::string instanceName(const BodyDesc& b, int i, int j, int k) {
 }  // namespace
 
 Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body, SourceShape* source) {
-  if (source) *source = sourceOf(body.shape);
+  const bool estimated = desc.normalsOf(body) == SurfaceNormals::Estimated;
+  if (source) {
+    *source = sourceOf(body.shape);
+    source->estimatedNormals = estimated;
+  }
   auto wrap = [&](const Error& e) {
     return at(desc, body.mark, "body '" + body.name + "': " + e.toString());
   };
@@ -71,7 +75,7 @@ Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body, So
     s.connectors = list->connectors;
     s.explicitConnectors = list->explicitConnectors;
     s.reach = list->reach;
-    auto cloud = buildParticleList(s);
+    auto cloud = buildParticleList(s);  // estimated normals: a particle list has no solid
     if (!cloud) return wrap(cloud.error());
     return cloud;
   }
@@ -95,6 +99,8 @@ Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body, So
                   " particles; expected at most " + std::to_string(kMaxSceneParticles) + " (use a larger radius)");
   auto cloud = fillShape(*shape, body.fill);
   if (!cloud) return wrap(cloud.error());
+  // normals: estimated replaces the solid's exact normals by those of the particles alone
+  if (estimated) useEstimatedNormals(*cloud);
   return cloud;
 }
 

@@ -23,8 +23,9 @@ inline constexpr std::size_t kMaxSceneParticles = 50'000'000;
 
 [[nodiscard]] Result<BuiltScene> buildScene(const SceneDesc& desc);
 
-/// Fills the shape of one body description (no placement). `desc.path` locates errors. With `source`, also
-/// describes the solid it filled (SourceShape; for a convex mesh with its face planes).
+/// Fills the shape of one body description (no placement), with the surface normals SceneDesc::normalsOf
+/// gives it. `desc.path` locates errors. With `source`, also describes the solid it filled (SourceShape; for
+/// a convex mesh with its face planes) and whether its normals were estimated.
 [[nodiscard]] Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body, SourceShape* source = nullptr);
 
 }  // namespace volpar

@@ -52,6 +52,13 @@ struct ParticlesDesc {
 };
 using ShapeDesc = std::variant<BoxDesc, SphereDesc, CylinderDesc, CapsuleDesc, MeshDesc, ParticlesDesc>;
 
+/// Where a body's surface normals come from (scene key `normals`). Not the narrow phase's NormalSource
+/// (collision/separating_plane.hpp), which says where one patch's plane normal came from.
+enum class SurfaceNormals : std::uint8_t {
+  Shape,      ///< the exact normals of the solid the body was filled from (fillShape)
+  Estimated,  ///< estimated from the particles and connectors alone (useEstimatedNormals), as a particle list gets them
+};
+
 struct RepeatDesc {
   std::array<int, 3> count{1, 1, 1};
   Vec3 spacing = Vec3::Zero();  ///< [m], world axes
@@ -74,6 +81,9 @@ struct BodyDesc {
   Vec3 velocity = Vec3::Zero();             ///< [m/s]
   Vec3 angularVelocity = Vec3::Zero();      ///< [rad/s]
   RepeatDesc repeat;
+  /// As the body's `normals` key gives it; unset takes SceneDesc::normals (see SceneDesc::normalsOf). An
+  /// explicit particle list has no solid, so its normals are always estimated (the loader rejects `shape`).
+  std::optional<SurfaceNormals> normals;
   /// Deformable bodies: particles inside any of these boxes (shape frame, [m]) are held fixed in space.
   std::vector<Eigen::AlignedBox3d> pins;    ///< particles inside (shape frame) are held in place
   std::vector<SourceMark> pinMarks;         ///< where each pin box is in the scene file
@@ -100,12 +110,15 @@ struct SceneDesc {
   int outputEvery = 1;
   bool allowInitialOverlap = false;
   bool rawNormals = false;  ///< solver uses centre-line normals instead of separating planes
+  SurfaceNormals normals = SurfaceNormals::Shape;  ///< for bodies that set no `normals` of their own
   std::map<std::string, Material> materials;  ///< always holds "default"
   std::vector<PlaneDesc> planes;
   std::vector<BodyDesc> bodies;
 
   /// Number of steps the scene asks for: steps, or round(duration / dt).
   [[nodiscard]] std::int64_t stepCount() const;
+  /// The normals `body` gets: its own `normals`, else this scene's; always Estimated for a particle list.
+  [[nodiscard]] SurfaceNormals normalsOf(const BodyDesc& body) const;
 };
 
 }  // namespace volpar

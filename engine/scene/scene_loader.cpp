@@ -377,6 +377,10 @@ ConnectorParams connectors(const Ctx& ctx, const YAML::Node& n, BodyKind kind) {
   return c;
 }
 
+SurfaceNormals surfaceNormals(const Ctx& ctx, const YAML::Node& n) {
+  return oneOf(ctx, n, "normals", {"shape", "estimated"}) == "estimated" ? SurfaceNormals::Estimated : SurfaceNormals::Shape;
+}
+
 RepeatDesc repeat(const Ctx& ctx, const YAML::Node& n) {
   const MapReader m(ctx, n, "repeat", {"count", "spacing", "rotation_step"});
   RepeatDesc r;
@@ -403,7 +407,7 @@ RepeatDesc repeat(const Ctx& ctx, const YAML::Node& n) {
 BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std::filesystem::path& sceneDir) {
   const MapReader m(ctx, n, "body",
                     {"name", "kind", "shape", "fill", "connectors", "material", "mass", "particle_mass", "position",
-                     "orientation", "velocity", "angular_velocity", "repeat", "pin"});
+                     "orientation", "velocity", "angular_velocity", "repeat", "pin", "normals"});
   BodyDesc b;
   b.mark = {n.Mark().line + 1, n.Mark().column + 1};
   b.name = m.has("name") ? text(ctx, m.get("name"), "body name") : "body" + std::to_string(index);
@@ -416,6 +420,13 @@ BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std:
   if (isList && m.has("fill"))
     ctx.fail(m.keyMark("fill"), "an explicit particle list takes no 'fill'; radii and reach go under 'particles'");
   if (!isList) b.fill = fill(ctx, m.require("fill"));
+  if (m.has("normals")) {
+    const YAML::Node nn = m.get("normals");
+    b.normals = surfaceNormals(ctx, nn);
+    if (isList && b.normals == SurfaceNormals::Shape)
+      ctx.fail(nn.Mark(), "an explicit particle list has no solid to take normals from; expected 'normals: estimated' "
+                          "(its default) or no 'normals'");
+  }
   if (m.has("connectors")) b.connectors = connectors(ctx, m.get("connectors"), b.kind);
   else if (b.kind == BodyKind::Deformable)
     ctx.fail(m.mark(), "missing key 'connectors' in body '" + b.name + "'; a deformable body needs {springs: {...}} or rods");
@@ -453,7 +464,7 @@ BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std:
 SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::path& sceneDir) {
   const MapReader m(ctx, root, "scene",
                     {"name", "dt", "steps", "duration", "gravity", "solver", "output", "materials", "planes",
-                     "bodies", "allow_initial_overlap"});
+                     "bodies", "allow_initial_overlap", "normals"});
   SceneDesc s;
   s.materials["default"] = Material{"default"};
   if (m.has("name")) s.name = text(ctx, m.get("name"), "scene name");
@@ -479,6 +490,7 @@ SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::p
     const MapReader om(ctx, m.get("output"), "output", {"every"});
     if (om.has("every")) s.outputEvery = static_cast<int>(integer(ctx, om.get("every"), "output every", 1, 1000000000));
   }
+  if (m.has("normals")) s.normals = surfaceNormals(ctx, m.get("normals"));
   if (m.has("allow_initial_overlap")) s.allowInitialOverlap = boolean(ctx, m.get("allow_initial_overlap"), "allow_initial_overlap");
   if (m.has("materials")) {
     const YAML::Node mats = m.get("materials");
@@ -522,6 +534,11 @@ std::int64_t SceneDesc::stepCount() const {
   if (steps) return *steps;
   if (duration) return std::max<std::int64_t>(1, static_cast<std::int64_t>(std::llround(*duration / dt)));
   return 0;
+}
+
+SurfaceNormals SceneDesc::normalsOf(const BodyDesc& body) const {
+  if (std::holds_alternative<ParticlesDesc>(body.shape)) return SurfaceNormals::Estimated;
+  return body.normals.value_or(normals);
 }
 
 Result<SceneDesc> parseScene(const std::string& sceneText, const std::string& path) {

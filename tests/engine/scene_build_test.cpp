@@ -1,9 +1,10 @@
-// Scenes turned into worlds: placement, orientation, repeats, masses and body kinds.
+// Scenes turned into worlds: placement, orientation, repeats, masses, body kinds and surface normals.
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
-
 #include <numbers>
 
 #include "tests/support/test_support.hpp"
@@ -171,6 +172,135 @@ bodies:
     SCOPED_TRACE(w.bodies().info[b].name);
     ASSERT_FALSE(w.bodyConnectors(BodyId(b)).empty());
     for (const ConnectorId c : w.bodyConnectors(BodyId(b))) EXPECT_EQ(w.connectors().breakLimit[c.index()], expected[b]);
+  }
+}
+
+/// The surface data of two clouds are the same, bit for bit: flags, normals, feature counts and the
+/// feature normals each count says are set.
+void expectSameSurface(const ParticleCloud& got, const ParticleCloud& want) {
+  ASSERT_EQ(got.size(), want.size());
+  EXPECT_EQ(got.positions, want.positions);
+  EXPECT_EQ(got.flags, want.flags);
+  EXPECT_EQ(got.normals, want.normals);
+  ASSERT_EQ(got.features, want.features);
+  for (std::size_t i = 0; i < got.size(); ++i)
+    for (std::size_t k = 0; k < std::min<std::size_t>(got.features[i], 3); ++k)
+      EXPECT_EQ(got.featureNormals[i][k], want.featureNormals[i][k]) << "particle " << i << ", feature " << k;
+}
+
+/// The largest angle [rad] between the normals two clouds give the same surface particle.
+double largestNormalAngle(const ParticleCloud& a, const ParticleCloud& b) {
+  double worst = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    if (a.flags[i] && b.flags[i]) worst = std::max(worst, std::acos(std::clamp(a.normals[i].dot(b.normals[i]), -1.0, 1.0)));
+  return worst;
+}
+
+TEST(SceneBuild, EstimatedNormalsAreThoseOfTheParticlesAlone) {
+  auto desc = test::sceneFromString(R"(
+dt: 0.01
+steps: 1
+bodies:
+  - name: exact
+    shape: {sphere: {radius: 0.25}}
+    fill: {radius: 0.05}
+  - name: estimated
+    shape: {sphere: {radius: 0.25}}
+    fill: {radius: 0.05}
+    position: [1, 0, 0]
+    normals: estimated
+)");
+  ASSERT_TRUE(desc.ok()) << desc.error().toString();
+  ASSERT_EQ(desc->bodies.size(), 2u);
+  EXPECT_EQ(desc->normalsOf(desc->bodies[0]), SurfaceNormals::Shape);
+  EXPECT_EQ(desc->normalsOf(desc->bodies[1]), SurfaceNormals::Estimated);
+
+  // the same fill with the solid's normals, and with the estimated ones in their place
+  auto solid = fillShape(SphereShape(0.25), desc->bodies[0].fill);
+  ASSERT_TRUE(solid.ok()) << solid.error().toString();
+  ParticleCloud reestimated = *solid;
+  useEstimatedNormals(reestimated);
+  // a sphere's lattice surface is not its exact one: the two kinds differ, so the comparisons below tell them apart
+  ASSERT_GT(largestNormalAngle(*solid, reestimated), 1e-3);
+
+  SourceShape exactSource, estimatedSource;
+  auto exact = buildCloud(*desc, desc->bodies[0], &exactSource);
+  auto estimated = buildCloud(*desc, desc->bodies[1], &estimatedSource);
+  ASSERT_TRUE(exact.ok() && estimated.ok());
+  {
+    SCOPED_TRACE("normals: shape (default)");
+    expectSameSurface(*exact, *solid);
+  }
+  {
+    SCOPED_TRACE("normals: estimated");
+    expectSameSurface(*estimated, reestimated);
+  }
+  EXPECT_FALSE(exactSource.estimatedNormals);
+  EXPECT_TRUE(estimatedSource.estimatedNormals);
+  EXPECT_EQ(estimatedSource.kind, SourceShape::Kind::Sphere);  // the solid is still known (for `volpar check`)
+
+  // the world's bodies carry them: surface flags, normals (unrotated bodies) and which kind they are
+  auto built = buildScene(*desc);
+  ASSERT_TRUE(built.ok()) << built.error().toString();
+  const World& w = built->world;
+  for (std::size_t b = 0; b < 2; ++b) {
+    SCOPED_TRACE(w.bodies().info[b].name);
+    const ParticleCloud& cloud = b == 0 ? *solid : reestimated;
+    EXPECT_EQ(w.bodies().info[b].source.estimatedNormals, b == 1);
+    EXPECT_EQ(w.bodies().info[b].core.estimatedNormals, b == 1);
+    const auto& ids = w.bodies().info[b].particles;
+    ASSERT_EQ(ids.size(), cloud.size());
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      EXPECT_EQ(w.particles().flags[ids[i].index()] != 0, cloud.flags[i] != 0) << i;
+      if (cloud.flags[i]) {
+        EXPECT_LT((w.particleNormal(ids[i]) - cloud.normals[i]).norm(), 1e-12) << i;
+      }
+    }
+  }
+}
+
+TEST(SceneBuild, TopLevelNormalsAreTheDefaultOfBodiesWithoutTheirOwn) {
+  const std::string bodies = R"(
+bodies:
+  - name: plain
+    shape: {cylinder: {radius: 0.15, height: 0.3}}
+    fill: {radius: 0.05}
+  - name: own
+    shape: {cylinder: {radius: 0.15, height: 0.3}}
+    fill: {radius: 0.05}
+    position: [1, 0, 0]
+    normals: shape
+  - name: list
+    shape:
+      particles: {positions: [[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0]], radius: 0.05}
+    position: [2, 0, 0]
+)";
+  // a particle list keeps its estimated normals under a top-level `shape`: it has no solid
+  const struct {
+    const char* top;
+    SurfaceNormals plain, own, list;
+  } cases[] = {{"", SurfaceNormals::Shape, SurfaceNormals::Shape, SurfaceNormals::Estimated},
+               {"normals: shape\n", SurfaceNormals::Shape, SurfaceNormals::Shape, SurfaceNormals::Estimated},
+               {"normals: estimated\n", SurfaceNormals::Estimated, SurfaceNormals::Shape, SurfaceNormals::Estimated}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.top[0] ? c.top : "no top-level normals");
+    auto desc = test::sceneFromString("dt: 0.01\nsteps: 1\n" + std::string(c.top) + bodies);
+    ASSERT_TRUE(desc.ok()) << desc.error().toString();
+    const SurfaceNormals want[] = {c.plain, c.own, c.list};
+    auto built = buildScene(*desc);
+    ASSERT_TRUE(built.ok()) << built.error().toString();
+    for (std::size_t b = 0; b < 3; ++b) {
+      SCOPED_TRACE(desc->bodies[b].name);
+      EXPECT_EQ(desc->normalsOf(desc->bodies[b]), want[b]);
+      EXPECT_EQ(built->world.bodies().info[b].source.estimatedNormals, want[b] == SurfaceNormals::Estimated);
+    }
+    // the body without its own key has the normals of the default: those of the fill, or estimated from it
+    auto solid = fillShape(CylinderShape(0.15, 0.3), desc->bodies[0].fill);
+    ASSERT_TRUE(solid.ok()) << solid.error().toString();
+    if (c.plain == SurfaceNormals::Estimated) useEstimatedNormals(*solid);
+    auto plain = buildCloud(*desc, desc->bodies[0]);
+    ASSERT_TRUE(plain.ok()) << plain.error().toString();
+    expectSameSurface(*plain, *solid);
   }
 }
 

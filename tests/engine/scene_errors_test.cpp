@@ -129,6 +129,16 @@ std::vector<Case> cases() {
   c.push_back(make("material rod strength zero",
                    "dt: 0.01\nsteps: 1\nmaterials:\n  chalk: {rod_strength: 0}\nbodies:\n  - name: a\n" + kBox, "0}",
                    "expected a positive rod strength"));
+  c.push_back(make("shape normals on a particle list",
+                   "dt: 0.01\nsteps: 1\nbodies:\n  - shape:\n      particles: {positions: [[0, 0, 0]], radius: 0.1}\n"
+                   "    normals: shape\n",
+                   "shape\n", "an explicit particle list has no solid to take normals from; expected 'normals: estimated'"));
+  c.push_back(make("unknown body normals", "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n" + kBox + "    normals: estimate\n",
+                   "estimate\n", "unknown normals 'estimate' (did you mean 'estimated'?); expected one of: shape, estimated"));
+  c.push_back(make("unknown top-level normals", "dt: 0.01\nsteps: 1\nnormals: smooth\nbodies:\n  - name: a\n" + kBox,
+                   "smooth", "unknown normals 'smooth'; expected one of: shape, estimated"));
+  c.push_back(make("normals not a name", "dt: 0.01\nsteps: 1\nnormals: [shape]\nbodies:\n  - name: a\n" + kBox,
+                   "[shape]", "expected a string for normals, got a list"));
   c.push_back(make("empty scene", "", "", "the scene is empty"));
   c.push_back(make("bodies not a list", "dt: 0.01\nsteps: 1\nbodies: {a: 1}\n", "{a: 1}", "expected a non-empty list of bodies"));
   return c;
