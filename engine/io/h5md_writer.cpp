@@ -375,7 +375,8 @@ struct ContactSeries {
 /// Contact patches of every frame (the narrow phase's PatchSet) as ragged arrays, like ContactSeries.
 struct PatchSeries {
   Hid group;
-  Series offset, count, bodyA, bodyB, plane, planeCase, source, point, normal, depth, validated, lookAhead, contacts;
+  Series offset, count, bodyA, bodyB, plane, planeCase, source, point, normal, depth, validated, lookAhead, lookAheadCase,
+      contacts;
 
   explicit PatchSeries(hid_t file = H5I_INVALID_HID) {
     if (file < 0) return;
@@ -392,12 +393,14 @@ struct PatchSeries {
     depth = Series(group.get(), "depth", H5T_IEEE_F64LE, {});
     validated = Series(group.get(), "validated", H5T_STD_I8LE, {});
     lookAhead = Series(group.get(), "look_ahead", H5T_STD_I8LE, {});
+    lookAheadCase = Series(group.get(), "look_ahead_case", H5T_STD_I32LE, {});
     contacts = Series(group.get(), "contacts", H5T_STD_I32LE, {});
     attrString(point.id(), "unit", "m");
     attrString(depth.id(), "unit", "m");
     std::vector<std::string> names;
     for (std::size_t k = 0; k < kPlaneCaseCount; ++k) names.emplace_back(planeCaseName(static_cast<PlaneCase>(k)));
     attrStrings(planeCase.id(), "case_names", names);
+    attrStrings(lookAheadCase.id(), "case_names", names);
     names.clear();
     for (std::size_t k = 0; k < kNormalSourceCount; ++k)
       names.emplace_back(normalSourceName(static_cast<NormalSource>(k)));
@@ -463,7 +466,7 @@ struct H5mdWriter::Impl {
   std::vector<double> bodyVec3, bodyQuat;
   std::vector<std::int32_t> contactA, contactB, contactPlane;
   std::vector<double> contactPoint, contactNormal, contactDepth;
-  std::vector<std::int32_t> patchA, patchB, patchPlane, patchCase, patchSource, patchContacts;
+  std::vector<std::int32_t> patchA, patchB, patchPlane, patchCase, patchSource, patchLookAheadCase, patchContacts;
   std::vector<double> patchPoint, patchNormal, patchDepth;
   std::vector<std::int8_t> patchValidated, patchLookAhead;
   std::size_t particles = 0;
@@ -758,6 +761,7 @@ void H5mdWriter::writePatches(const PatchSet& set) {
   m.patchDepth.resize(n);
   m.patchValidated.resize(n);
   m.patchLookAhead.resize(n);
+  m.patchLookAheadCase.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const ContactPatch& p = set.patches[i];
     m.patchA[i] = static_cast<std::int32_t>(p.a.value);
@@ -773,6 +777,8 @@ void H5mdWriter::writePatches(const PatchSet& set) {
     m.patchDepth[i] = p.depth;
     m.patchValidated[i] = p.validated ? 1 : 0;
     m.patchLookAhead[i] = p.lookAhead ? 1 : 0;
+    // the case of the configuration the look-ahead predicted, -1 where none decided the plane
+    m.patchLookAheadCase[i] = p.lookAhead ? static_cast<std::int32_t>(p.lookAheadCase) : -1;
   }
   PatchSeries& ps = m.patches;
   const auto offset = static_cast<std::int64_t>(ps.bodyA.rows());
@@ -789,6 +795,7 @@ void H5mdWriter::writePatches(const PatchSet& set) {
   ps.depth.appendRows(H5T_NATIVE_DOUBLE, m.patchDepth.data(), n);
   ps.validated.appendRows(H5T_NATIVE_INT8, m.patchValidated.data(), n);
   ps.lookAhead.appendRows(H5T_NATIVE_INT8, m.patchLookAhead.data(), n);
+  ps.lookAheadCase.appendRows(H5T_NATIVE_INT32, m.patchLookAheadCase.data(), n);
   ps.contacts.appendRows(H5T_NATIVE_INT32, m.patchContacts.data(), n);
 }
 

@@ -252,13 +252,14 @@ TEST(H5md, PatchRecordsOfEveryFrameReadBackBitForBit) {
   const auto depth = readAll<double>(f, "/patches/depth", H5T_NATIVE_DOUBLE);
   const auto validated = readAll<std::int8_t>(f, "/patches/validated", H5T_NATIVE_INT8);
   const auto lookAhead = readAll<std::int8_t>(f, "/patches/look_ahead", H5T_NATIVE_INT8);
+  const auto lookAheadCase = readAll<std::int32_t>(f, "/patches/look_ahead_case", H5T_NATIVE_INT32);
   const auto contacts = readAll<std::int32_t>(f, "/patches/contacts", H5T_NATIVE_INT32);
   const auto step = readAll<std::int64_t>(f, "/patches/step", H5T_NATIVE_INT64);
   const auto time = readAll<double>(f, "/patches/time", H5T_NATIVE_DOUBLE);
   ASSERT_EQ(offset.size(), frames);
   ASSERT_EQ(count.size(), frames);
   for (const std::size_t n : {bodyA.size(), bodyB.size(), plane.size(), planeCase.size(), source.size(), depth.size(),
-                              validated.size(), lookAhead.size(), contacts.size()})
+                              validated.size(), lookAhead.size(), lookAheadCase.size(), contacts.size()})
     ASSERT_EQ(n, total);
   ASSERT_EQ(point.size(), 3 * total);
   ASSERT_EQ(normal.size(), 3 * total);
@@ -291,6 +292,7 @@ TEST(H5md, PatchRecordsOfEveryFrameReadBackBitForBit) {
       EXPECT_TRUE(sameBits(depth[i], p.depth)) << "depth of patch " << i;
       EXPECT_EQ(validated[i], p.validated ? 1 : 0);
       EXPECT_EQ(lookAhead[i], p.lookAhead ? 1 : 0);
+      EXPECT_EQ(lookAheadCase[i], p.lookAhead ? static_cast<std::int32_t>(p.lookAheadCase) : -1);
       EXPECT_EQ(contacts[i], static_cast<std::int32_t>(p.count));
       frameContacts += contacts[i];
     }
@@ -302,12 +304,14 @@ TEST(H5md, PatchRecordsOfEveryFrameReadBackBitForBit) {
   EXPECT_EQ(fileTypeOf(f, "/patches/body_a"), std::make_tuple(H5T_INTEGER, std::size_t{4}, H5T_SGN_2));
   EXPECT_EQ(fileTypeOf(f, "/patches/validated"), std::make_tuple(H5T_INTEGER, std::size_t{1}, H5T_SGN_2));
   EXPECT_EQ(fileTypeOf(f, "/patches/look_ahead"), std::make_tuple(H5T_INTEGER, std::size_t{1}, H5T_SGN_2));
+  EXPECT_EQ(fileTypeOf(f, "/patches/look_ahead_case"), std::make_tuple(H5T_INTEGER, std::size_t{4}, H5T_SGN_2));
   EXPECT_EQ(fileTypeOf(f, "/patches/normal"), std::make_tuple(H5T_FLOAT, std::size_t{8}, H5T_SGN_ERROR));
   std::vector<std::string> caseNames, sourceNames;
   for (std::size_t k = 0; k < kPlaneCaseCount; ++k) caseNames.emplace_back(planeCaseName(static_cast<PlaneCase>(k)));
   for (std::size_t k = 0; k < kNormalSourceCount; ++k)
     sourceNames.emplace_back(normalSourceName(static_cast<NormalSource>(k)));
   EXPECT_EQ(readStringsAttr(f, "/patches/case", "case_names"), caseNames);
+  EXPECT_EQ(readStringsAttr(f, "/patches/look_ahead_case", "case_names"), caseNames);
   EXPECT_EQ(readStringsAttr(f, "/patches/source", "source_names"), sourceNames);
   H5Fclose(f);
 

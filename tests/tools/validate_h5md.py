@@ -270,7 +270,8 @@ def check_patches(f, step, exists, kinds, particle_body, planes):
     N = int(count.sum())
     columns = {"body_a": ((N,), "i4"), "body_b": ((N,), "i4"), "plane": ((N,), "i4"), "case": ((N,), "i4"),
                "source": ((N,), "i4"), "point": ((N, 3), "f8"), "normal": ((N, 3), "f8"), "depth": ((N,), "f8"),
-               "validated": ((N,), "i1"), "look_ahead": ((N,), "i1"), "contacts": ((N,), "i4")}
+               "validated": ((N,), "i1"), "look_ahead": ((N,), "i1"), "look_ahead_case": ((N,), "i4"),
+               "contacts": ((N,), "i4")}
     for name, (shape, dtype) in columns.items():
         d = p[name]
         expect(d.shape == shape and d.dtype == np.dtype("<" + dtype), f"/patches/{name} is {d.dtype} {d.shape}, "
@@ -290,6 +291,12 @@ def check_patches(f, step, exists, kinds, particle_body, planes):
     expect(np.all((source >= 0) & (source < len(source_names))), "patch source outside source_names")
     expect(np.all(np.isin(col["validated"], [0, 1])) and np.all(np.isin(col["look_ahead"], [0, 1])),
            "validated/look_ahead must be 0 or 1")
+    # the case the look-ahead predicted, -1 exactly where no look-ahead decided the plane
+    look_case = col["look_ahead_case"]
+    expect([str(n) for n in p["look_ahead_case"].attrs["case_names"]] == case_names,
+           "/patches/look_ahead_case case_names != /patches/case case_names")
+    expect(np.all((look_case >= -1) & (look_case < len(case_names))), "look_ahead_case outside -1 and case_names")
+    expect(np.array_equal(look_case == -1, col["look_ahead"] == 0), "look_ahead_case is -1 exactly where look_ahead is 0")
     expect(np.all(np.isfinite(col["point"])) and np.all(np.isfinite(col["depth"])), "non-finite patch point or depth")
     expect(np.allclose(np.linalg.norm(col["normal"], axis=1), 1.0, rtol=0, atol=1e-12), "patch normals are not unit")
     a, b, plane = col["body_a"], col["body_b"], col["plane"]
@@ -372,6 +379,12 @@ def self_test(path):
         "patch contacts lost": lambda f: f["patches/contacts"].__setitem__(
             slice(None), np.ones(f["patches/contacts"].shape, dtype=np.int32)),
         "patch depth not finite": lambda f: f["patches/depth"].__setitem__(0, np.nan),
+        "look-ahead case unknown": lambda f: f["patches/look_ahead_case"].__setitem__(
+            0, len(f["patches/case"].attrs["case_names"])),
+        "look-ahead case without a look-ahead": lambda f: f["patches/look_ahead_case"].__setitem__(
+            int(np.argmin(f["patches/look_ahead"][()])), 0),
+        "look-ahead without its case": lambda f: (f["patches/look_ahead"].__setitem__(0, 1),
+                                                  f["patches/look_ahead_case"].__setitem__(0, -1)),
     }
     tmp = tempfile.mkdtemp()
     try:
