@@ -2,6 +2,7 @@
 // What the narrow phase reads and produces: contact patches with their separating planes (DESIGN
 // section 4; docs/narrow-phase.md).
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -30,9 +31,36 @@ struct ContactPatch {
   bool validated = false;
   bool lookAhead = false;         ///< a look-ahead decided the plane (the configuration it predicted gave the normal)
   PlaneCase lookAheadCase = PlaneCase::VertexFace11;  ///< when lookAhead: the case of the predicted configuration
+  /// Where the plane came from one side's curved core (a sphere's centre: core[0] == core[1]; a cylinder's
+  /// axis: the segment core[0]..core[1], world) against a side without a core (a deformable body): that
+  /// side, 0 (A) or 1 (B); each contact then has the core's tangent plane at it (contactNormal). -1 elsewhere.
+  std::int8_t curvedSide = -1;
+  std::array<Vec3, 2> core{Vec3::Zero(), Vec3::Zero()};
   std::uint32_t first = 0;        ///< range in PatchSet::contacts
   std::uint32_t count = 0;
 };
+
+/// The normal of one contact of `patch`, from the contact's particle a (at xa) towards b (at xb); `flipped`:
+/// its a is on the patch's side B. The patch's normal, or where the patch has a curved side, the normal of
+/// that core's tangent plane through the contact (the direction from the core's nearest point to the other
+/// side's particle), so that the contacts of a patch that wraps round a ball each push along their own
+/// radius. Never more than 60 degrees from the patch's normal.
+[[nodiscard]] inline Vec3 contactNormal(const ContactPatch& patch, const Vec3& xa, const Vec3& xb, bool flipped) {
+  Vec3 n = patch.normal;
+  if (patch.curvedSide >= 0) {
+    const Vec3& onA = flipped ? xb : xa;
+    const Vec3& onB = flipped ? xa : xb;
+    const Vec3& x = patch.curvedSide == 0 ? onB : onA;
+    const Vec3 axis = patch.core[1] - patch.core[0];
+    const double len2 = axis.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp(axis.dot(x - patch.core[0]) / len2, 0.0, 1.0) : 0.0;
+    Vec3 d = x - (patch.core[0] + t * axis);
+    if (patch.curvedSide == 1) d = -d;
+    const double norm = d.norm();
+    if (norm > 0.0 && d.dot(patch.normal) > 0.5 * norm) n = d / norm;
+  }
+  return flipped ? Vec3(-n) : n;
+}
 
 struct NarrowPhaseStats {
   std::size_t patches = 0;
@@ -61,8 +89,9 @@ struct NarrowPhaseStats {
 struct PatchSet {
   std::vector<ContactPatch> patches;
   std::vector<std::uint32_t> contacts;       ///< indices into ContactSet::contacts, grouped by patch
-  /// Per contact of ContactSet (same order): overlap of the two particles' extents along the patch normal,
-  /// r_a + r_b - n . (x_b - x_a) [m] (plane contacts: the depth). A side's particle tops form a flat face.
+  /// Per contact of ContactSet (same order): overlap of the two particles' extents along the contact's
+  /// normal (contactNormal), r_a + r_b - n . (x_b - x_a) [m] (plane contacts: the depth). A side's particle
+  /// tops form a flat face.
   std::vector<double> depthAlongNormal;
   std::vector<std::uint32_t> patchOfContact; ///< per contact of ContactSet: its patch
   /// Per contact of ContactSet: 1 where its particle b lies on the patch's side A (self-contact of a

@@ -10,7 +10,7 @@ namespace {
 
 /// A simplex of the Minkowski difference: vertices w = b[ib] - a[ia] with barycentric weights.
 struct Simplex {
-  std::array<Vec3, 4> w;
+  std::array<Vec3, 4> w{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
   std::array<std::uint32_t, 4> ia{}, ib{};
   std::array<double, 4> lambda{};
   int n = 0;

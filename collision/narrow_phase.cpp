@@ -9,23 +9,6 @@ namespace volpar {
 
 namespace {
 
-std::uint32_t findRoot(std::vector<std::uint32_t>& parent, std::uint32_t i) {
-  while (parent[i] != i) {
-    parent[i] = parent[parent[i]];
-    i = parent[i];
-  }
-  return i;
-}
-
-void unite(std::vector<std::uint32_t>& parent, std::uint32_t i, std::uint32_t j) {
-  i = findRoot(parent, i);
-  j = findRoot(parent, j);
-  if (i == j) return;
-  // the smaller index is the root: a patch is named by its first contact
-  if (j < i) std::swap(i, j);
-  parent[j] = i;
-}
-
 }  // namespace
 
 const char* planeCaseName(PlaneCase c) {
@@ -125,6 +108,10 @@ void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const
     patch.source = cp.source;
     patch.validated = cp.validated;
     patch.lookAhead = cp.lookAhead;
+    patch.lookAheadCase = cp.lookAheadCase;
+    patch.curvedSide = cp.curvedSide;
+    if (!plane)
+      for (std::size_t e = 0; e < 2; ++e) patch.core[e] = in.bodies->state[g.a.index()].position + qa * cp.core[e];
     patch.first = static_cast<std::uint32_t>(w.o->contacts.size());
     patch.count = cp.count;
     // depths along the normal and the deepest point, from the current positions
@@ -135,9 +122,10 @@ void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const
       w.o->contacts.push_back(ci);
       const ParticleContact& ct = set.contacts[ci];
       if (ct.depth > set.contacts[deepest].depth) deepest = ci;
+      const Vec3 n = contactNormal(patch, p.position[ct.a.index()], p.position[ct.b.index()], out.flipped[ci] != 0);
       const double d = plane ? ct.depth
                              : p.radius[ct.a.index()] + p.radius[ct.b.index()] -
-                                   patch.normal.dot(p.position[ct.b.index()] - p.position[ct.a.index()]);
+                                   n.dot(p.position[ct.b.index()] - p.position[ct.a.index()]);
       out.depthAlongNormal[ci] = d;
       patch.depth = std::max(patch.depth, d);
     }
@@ -178,6 +166,10 @@ void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, co
     cp.source = patch.source;
     cp.validated = patch.validated;
     cp.lookAhead = patch.lookAhead;
+    cp.lookAheadCase = patch.lookAheadCase;
+    cp.curvedSide = patch.curvedSide;
+    if (!g.plane.valid())
+      for (std::size_t e = 0; e < 2; ++e) cp.core[e] = toA * (patch.core[e] - in.bodies->state[g.a.index()].position);
     w.o->cache.patches.push_back(cp);
     for (std::uint32_t i = patch.first; i < patch.first + patch.count; ++i) w.o->cache.order.push_back(w.o->contacts[i] - g.first);
   }
@@ -293,52 +285,43 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
 
 void NarrowPhase::makePatches(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, Worker& w,
                               PatchSet& out) const {
-  const std::uint32_t m = g.count;
-  std::vector<std::uint32_t>& parent = w.parent;
-  std::vector<std::uint32_t>& order = w.order;
-  parent.resize(m);
-  std::iota(parent.begin(), parent.end(), 0u);
-  const ParticleContact* c = set.contacts.data() + g.first;
-  const bool plane = g.plane.valid();
-  auto near = [&](ParticleId x, ParticleId y) { return x == y || in.finder->connected(x, y); };
-  // contacts are sorted by a: the ones sharing or neighbouring a_i are found by binary search
-  auto byA = [&](ParticleId a) {
-    return std::equal_range(c, c + m, a, [](const auto& l, const auto& r) {
-      if constexpr (std::is_same_v<std::decay_t<decltype(l)>, ParticleContact>) return l.a < r;
-      else return l < r.a;
-    });
-  };
-  for (std::uint32_t i = 0; i < m; ++i) {
-    auto visit = [&](ParticleId a) {
-      const auto [lo, hi] = byA(a);
-      for (const ParticleContact* cj = lo; cj != hi; ++cj) {
-        const auto j = static_cast<std::uint32_t>(cj - c);
-        // neighbours on both sides, facing roughly the same way (so the floor of a slot and its walls,
-        // which a peg may touch or nearly touch at once, stay separate patches)
-        if (j != i && (plane || near(c[i].b, cj->b)) && c[i].normal.dot(cj->normal) > 0.2) unite(parent, i, j);
+  w.builder.build(in, set, g, out.flipped, w.order, w.sizes);
+  // each patch's plane; a patch that validates none is split in two and each part solved again, down to
+  // single contacts, which are then resolved along their own centre lines (counted)
+  std::uint32_t begin = 0;
+  for (const std::uint32_t size : w.sizes) {
+    w.ranges.clear();
+    w.ranges.emplace_back(begin, begin + size);
+    begin += size;
+    while (!w.ranges.empty()) {
+      const auto [first, last] = w.ranges.back();
+      w.ranges.pop_back();
+      const std::span<std::uint32_t> idx(w.order.data() + first, last - first);
+      ContactPatch patch;
+      patch.a = g.a;
+      patch.b = g.b;
+      patch.plane = g.plane;
+      NarrowPhaseStats tried;
+      w.solver.solve(in, set, idx, out.flipped, patch, out.depthAlongNormal, tried);
+      if (!patch.validated && idx.size() >= 2) {
+        const auto half = static_cast<std::uint32_t>(w.builder.split(in, set, idx, out.flipped));
+        w.ranges.emplace_back(first + half, last);
+        w.ranges.emplace_back(first, first + half);
+        w.o->stats.candidates += tried.candidates;
+        w.o->stats.lookAheads += tried.lookAheads;
+        ++w.o->stats.splits;
+        continue;
       }
-    };
-    visit(c[i].a);
-    for (const ParticleId n : in.finder->neighbours(c[i].a)) visit(n);
-  }
-  // patches in the order of their first contact
-  order.resize(m);
-  std::iota(order.begin(), order.end(), 0u);
-  for (std::uint32_t i = 0; i < m; ++i) parent[i] = findRoot(parent, i);
-  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t x, std::uint32_t y) { return parent[x] < parent[y]; });
-  std::uint32_t k = 0;
-  while (k < m) {
-    ContactPatch patch;
-    patch.a = g.a;
-    patch.b = g.b;
-    patch.plane = g.plane;
-    patch.first = static_cast<std::uint32_t>(w.o->contacts.size());
-    const std::uint32_t root = parent[order[k]];
-    for (; k < m && parent[order[k]] == root; ++k) w.o->contacts.push_back(g.first + order[k]);
-    patch.count = static_cast<std::uint32_t>(w.o->contacts.size()) - patch.first;
-    w.solver.solve(in, set, std::span<const std::uint32_t>(w.o->contacts.data() + patch.first, patch.count), out.flipped,
-                   patch, out.depthAlongNormal, w.o->stats);
-    w.o->patches.push_back(patch);
+      if (!patch.validated || patch.a == patch.b) {
+        patch.source = NormalSource::ContactLines;
+        ++tried.contactLines;
+      }
+      w.o->stats += tried;
+      patch.first = static_cast<std::uint32_t>(w.o->contacts.size());
+      patch.count = static_cast<std::uint32_t>(idx.size());
+      w.o->contacts.insert(w.o->contacts.end(), idx.begin(), idx.end());
+      w.o->patches.push_back(patch);
+    }
   }
 }
 

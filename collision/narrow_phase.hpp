@@ -17,6 +17,7 @@
 #include "collision/contact_patch.hpp"
 #include "collision/normal_cache.hpp"
 #include "collision/particle_contacts.hpp"
+#include "collision/patch_builder.hpp"
 #include "collision/plane_solver.hpp"
 #include "collision/separating_plane.hpp"
 #include "engine/core/body_store.hpp"
@@ -62,6 +63,9 @@ class NarrowPhase {
     NormalSource source = NormalSource::CentreLine;
     bool validated = false;
     bool lookAhead = false;
+    PlaneCase lookAheadCase = PlaneCase::VertexFace11;
+    std::int8_t curvedSide = -1;
+    std::array<Vec3, 2> core{Vec3::Zero(), Vec3::Zero()};  // in A's frame, about A's position
   };
   struct CachedGroup {
     GroupKey key;
@@ -97,7 +101,9 @@ class NarrowPhase {
   struct alignas(64) Worker {
     Output* o = nullptr;  // the chunk being worked on
     // scratch, reused across patches and steps
-    std::vector<std::uint32_t> parent, order;
+    std::vector<std::uint32_t> order, sizes;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges;  // patches to solve, as ranges of `order`
+    PatchBuilder builder;
     PlaneSolver solver;
   };
 

@@ -37,7 +37,11 @@ std::size_t NormalUpdater::recompute(std::span<const ParticleId> ids, ParticleSt
     (bodies.info[p.body[id.index()].index()].kind == BodyKind::Deformable ? deformable_ : rigid_).push_back(id);
   const auto run = [&](const std::vector<ParticleId>& targets, const std::vector<Vec3>& positions, bool world) {
     if (targets.empty()) return;
-    estimator_.estimate({positions, adjacency.adjacencyStart(), adjacency.adjacencyList(), opened}, targets, out_);
+    // a deformable body's sheets and chains stay sheets and chains as they bend
+    kinds_.clear();
+    if (world)
+      for (const ParticleId id : targets) kinds_.push_back(p.flags[id.index()]);
+    estimator_.estimate({positions, adjacency.adjacencyStart(), adjacency.adjacencyList(), opened}, targets, out_, kinds_);
     for (std::size_t t = 0; t < targets.size(); ++t) {
       const std::size_t i = targets[t].index();
       const Quat toCache = world ? bodies.state[p.body[i].index()].orientation.conjugate() : Quat::Identity();

@@ -126,6 +126,7 @@ class NormalUpdater {
   SurfaceEstimator estimator_;
   std::vector<ParticleId> rigid_, deformable_;
   std::vector<SurfaceEstimate> out_;
+  std::vector<std::uint8_t> kinds_;
 };
 
 }  // namespace volpar

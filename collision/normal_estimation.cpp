@@ -71,6 +71,15 @@ const SurfaceEstimator::Raw& SurfaceEstimator::raw(const Neighbourhood& nb, std:
   return r;
 }
 
+Mat3 SurfaceEstimator::neighbourAxes(const Neighbourhood& nb, std::uint32_t i) {
+  Mat3 cov = Mat3::Zero();
+  for (std::uint32_t k = nb.start[i]; k < nb.start[i + 1]; ++k) {
+    const Vec3 d = nb.positions[nb.neighbours[k].index()] - nb.positions[i];
+    cov += d * d.transpose();
+  }
+  return Eigen::SelfAdjointEigenSolver<Mat3>(cov, Eigen::ComputeEigenvectors).eigenvectors();
+}
+
 void SurfaceEstimator::twoRing(const Neighbourhood& nb, std::uint32_t i, std::vector<std::uint32_t>& out) {
   out.clear();
   if (++markStamp_ == 0) {
@@ -80,7 +89,7 @@ void SurfaceEstimator::twoRing(const Neighbourhood& nb, std::uint32_t i, std::ve
   mark_[i] = markStamp_;
   out.push_back(i);
   std::size_t begin = 0;
-  for (int hop = 0; hop < rings_; ++hop) {
+  for (int hop = 0; hop < 2; ++hop) {
     const std::size_t end = out.size();
     for (std::size_t k = begin; k < end; ++k) {
       const std::uint32_t q = out[k];
@@ -136,7 +145,7 @@ const SurfaceEstimator::Fit& SurfaceEstimator::fit(const Neighbourhood& nb, std:
 }
 
 void SurfaceEstimator::estimate(const Neighbourhood& nb, std::span<const ParticleId> targets,
-                                std::vector<SurfaceEstimate>& out) {
+                                std::vector<SurfaceEstimate>& out, std::span<const std::uint8_t> kinds) {
   grow(nb.positions.size());
   if (++stamp_ == 0) {  // wrapped: forget every memo
     std::fill(rawStamp_.begin(), rawStamp_.end(), 0u);
@@ -147,7 +156,18 @@ void SurfaceEstimator::estimate(const Neighbourhood& nb, std::span<const Particl
   for (std::size_t t = 0; t < targets.size(); ++t) {
     const std::uint32_t i = targets[t].value;
     SurfaceEstimate& e = out[t];
-    const Raw r = raw(nb, i);
+    Raw r = raw(nb, i);
+    // a sheet or a chain stays one when it bends (its neighbours are then no longer in a plane or on a line)
+    if (t < kinds.size() && r.kind != kPoint && (kinds[t] & (kParticleSheet | kParticleLine))) {
+      const Mat3 axes = neighbourAxes(nb, i);
+      if (kinds[t] & kParticleLine) {
+        r.kind = kLine;
+        r.axis = axes.col(2);
+      } else {
+        r.axis = axes.col(0);
+        r.kind = (kinds[t] & kParticleEdge) ? kRim : kSheet;
+      }
+    }
     switch (r.kind) {
       case kInterior: continue;
       case kPoint: e.flags = kParticleSurface; continue;

@@ -52,8 +52,11 @@ struct Neighbourhood {
 /// particles costs their two-hop neighbourhoods, never the whole index space.
 class SurfaceEstimator {
  public:
-  /// The estimates of `targets` (indices into the neighbourhood), in their order.
-  void estimate(const Neighbourhood& nb, std::span<const ParticleId> targets, std::vector<SurfaceEstimate>& out);
+  /// The estimates of `targets` (indices into the neighbourhood), in their order. With `kinds` (ParticleFlag
+  /// bits per target, e.g. those a deformable body had at rest), a sheet or a chain stays one however it is
+  /// bent: only its normal (or direction) follows the current positions.
+  void estimate(const Neighbourhood& nb, std::span<const ParticleId> targets, std::vector<SurfaceEstimate>& out,
+                std::span<const std::uint8_t> kinds = {});
 
  private:
   struct Raw {
@@ -67,6 +70,9 @@ class SurfaceEstimator {
     Vec3 normal = Vec3::Zero();
   };
   const Raw& raw(const Neighbourhood& nb, std::uint32_t i);
+  /// The principal axes of i's neighbour offsets: [0] the normal of their best-fit plane through i, [2] the
+  /// direction of their best-fit line.
+  [[nodiscard]] static Mat3 neighbourAxes(const Neighbourhood& nb, std::uint32_t i);
   const Fit& fit(const Neighbourhood& nb, std::uint32_t i);
   void twoRing(const Neighbourhood& nb, std::uint32_t i, std::vector<std::uint32_t>& out);
   void grow(std::size_t n);
@@ -75,9 +81,7 @@ class SurfaceEstimator {
   std::vector<Fit> fit_;
   std::vector<std::uint32_t> rawStamp_, fitStamp_, mark_;
   std::uint32_t stamp_ = 0, markStamp_ = 0;
- public:
-  int rings_ = 2;
- private:
+
   std::vector<std::uint32_t> ring_, frontier_, next_, fitRing_;
   std::vector<Vec3> points_;
 };

@@ -11,6 +11,7 @@ namespace {
 
 constexpr double kFacing = 0.05;      // a neighbour's normal faces the other side: n . d above this
 constexpr double kFlat = 0.99985;     // cos 1 degree: the normals of a flat side agree within this
+constexpr double kAcross = 0.3;       // a sheet faces a direction that crosses it at more than 17 degrees
 
 }  // namespace
 
@@ -47,6 +48,8 @@ void PlaneSolver::gather(const NarrowPhaseInput& in, Side& side, int rings) {
   ring(in, side.particles, rings, ringIds_, mark_, stamp_, frontier_, next_);
   const ParticleStore& p = *in.particles;
   side.local.resize(ringIds_.size());
+  BodyId rotated;
+  Mat3 r = Mat3::Identity();
   for (std::size_t i = 0; i < ringIds_.size(); ++i) {
     const ParticleId q = ringIds_[i];
     Local& l = side.local[i];
@@ -59,7 +62,10 @@ void PlaneSolver::gather(const NarrowPhaseInput& in, Side& side, int rings) {
     l.n = Vec3::Zero();
     const std::int32_t k = p.normalIndex[q.index()];
     if (k >= 0) {
-      const Quat& r = in.bodies->state[p.body[q.index()].index()].orientation;
+      if (p.body[q.index()] != rotated) {
+        rotated = p.body[q.index()];
+        r = in.bodies->state[rotated.index()].orientation.toRotationMatrix();
+      }
       l.n = r * (*in.normals)[k];
       const std::span<const Vec3> f = in.normals->faces(k);
       l.faceCount = static_cast<std::uint8_t>(f.size());
@@ -68,6 +74,11 @@ void PlaneSolver::gather(const NarrowPhaseInput& in, Side& side, int rings) {
       l.flags = static_cast<std::uint8_t>(l.flags & ~kParticleSurface);
     }
   }
+}
+
+bool PlaneSolver::presents(const Local& q, const Vec3& towards) {
+  // a sheet shows a face only to what is across it, not to particles beside it in its own layer
+  return !(q.flags & kParticleSheet) || q.faceCount == 0 || std::abs(q.faces[0].dot(towards)) >= kAcross;
 }
 
 Vec3 PlaneSolver::facing(const Local& q, const Vec3& towards) {
@@ -125,6 +136,7 @@ bool PlaneSolver::featureNormal(const Side& side, const HullDistance& h, bool is
     const Local& q = side.local[side.hullLocal[hi]];
     if (!(q.flags & kParticleSurface) || (q.flags & kParticleSharp) || q.n.isZero()) continue;
     if ((q.flags & kParticleSheet) && (q.flags & kParticleEdge)) continue;  // a sheet's rim
+    if (!presents(q, towards)) continue;
     const double w = h.weight[static_cast<std::size_t>(k)];
     sum += w * facing(q, towards);
     weight += w;
@@ -230,14 +242,83 @@ void polytopeVertices(const std::vector<std::pair<Vec3, double>>& planes, double
 }  // namespace
 
 bool PlaneSolver::flatCluster(const FaceCluster& c, double spacing) {
+  if (c.sharp) return true;
   if (c.count < 2) return false;
-  // the members' spread across the normal: a line of them is a ruling of a curved surface
+  // the members' spread across the normal, in a basis (u, v) of the plane: a line of them (the smaller
+  // principal variance about nothing) is a ruling of a curved surface
   const Vec3 n = c.sum.normalized();
+  const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
   const Vec3 mean = c.position / c.count;
   const Mat3 cov = c.spread / c.count - mean * mean.transpose();
-  const Mat3 across = (Mat3::Identity() - n * n.transpose()) * cov * (Mat3::Identity() - n * n.transpose());
-  const Eigen::SelfAdjointEigenSolver<Mat3> eig(across, Eigen::EigenvaluesOnly);
-  return eig.eigenvalues()[1] > 0.04 * spacing * spacing || c.sharp;
+  const double uu = u.dot(cov * u), vv = v.dot(cov * v), uv = u.dot(cov * v);
+  const double half = 0.5 * (uu + vv), dev = std::sqrt(0.25 * (uu - vv) * (uu - vv) + uv * uv);
+  return half - dev > 0.04 * spacing * spacing;
+}
+
+bool PlaneSolver::exactFeature(const Side& side, const HullDistance& h, bool isA, const Vec3& towards, double spacing) const {
+  // the feature's faces: those its particles share (a facet of one face's particles: that face; an edge's
+  // particles: its two faces; a corner: its three), each particle on each of their planes
+  std::array<Vec3, 3> faces{};
+  std::size_t count = 0;
+  bool first = true;
+  const double tol = 1e-7 * spacing;
+  for (int k = 0; k < h.count; ++k) {
+    if (!(h.weight[static_cast<std::size_t>(k)] > 0.0)) continue;
+    const std::uint32_t hi = isA ? h.indexA[static_cast<std::size_t>(k)] : h.indexB[static_cast<std::size_t>(k)];
+    const std::uint32_t li = side.hullLocal[hi];
+    const Local& q = side.local[li];
+    if (!(q.flags & kParticleSurface) || (q.flags & kParticleLine) || q.n.isZero()) return false;
+    std::array<Vec3, 3> own{};
+    std::size_t owned = 0;
+    if (q.flags & kParticleSheet) {
+      if (!presents(q, towards)) return false;
+      own[owned++] = facing(q, towards);
+      if ((q.flags & kParticleEdge) && q.faceCount == 3) own[owned++] = q.faces[2];
+    } else if (q.flags & (kParticleEdge | kParticleCorner)) {
+      for (std::size_t f = 0; f < q.faceCount; ++f) own[owned++] = q.faces[f];
+    } else {
+      if (li >= flatLocal_.size() || !flatLocal_[li]) return false;  // a curved surface: no exact feature
+      own[owned++] = q.n;
+    }
+    if (first) {
+      faces = own;
+      count = owned;
+      first = false;
+    } else {
+      std::size_t kept = 0;
+      for (std::size_t f = 0; f < count; ++f) {
+        bool shared = false;
+        for (std::size_t g = 0; g < owned; ++g) shared = shared || faces[f].dot(own[g]) > kFlat;
+        if (shared) faces[kept++] = faces[f];
+      }
+      count = kept;
+    }
+  }
+  if (count == 0) return false;
+  for (int k = 0; k < h.count; ++k) {
+    if (!(h.weight[static_cast<std::size_t>(k)] > 0.0)) continue;
+    const std::uint32_t hi = isA ? h.indexA[static_cast<std::size_t>(k)] : h.indexB[static_cast<std::size_t>(k)];
+    const Vec3& x = side.local[side.hullLocal[hi]].x;
+    for (std::size_t f = 0; f < count; ++f) {
+      bool on = false;
+      for (const auto& [n, d] : planes_) on = on || (n.dot(faces[f]) > kFlat && std::abs(n.dot(x) - d) <= tol);
+      if (!on) return false;
+    }
+  }
+  // the direction as a combination of the feature's face normals with no negative weight
+  const double slack = 1e-9;
+  if (count == 1) return towards.dot(faces[0]) > 1.0 - slack;
+  if (count == 2) {
+    if (std::abs(towards.dot(faces[0].cross(faces[1]).normalized())) > slack) return false;
+    const double g = faces[0].dot(faces[1]), t0 = towards.dot(faces[0]), t1 = towards.dot(faces[1]);
+    const double det = 1.0 - g * g;
+    return det > 1e-9 && (t0 - g * t1) / det >= -slack && (t1 - g * t0) / det >= -slack;
+  }
+  Mat3 m;
+  for (int f = 0; f < 3; ++f) m.col(f) = faces[static_cast<std::size_t>(f)];
+  if (!(std::abs(m.determinant()) > 1e-6)) return false;
+  const Vec3 w = m.partialPivLu().solve(towards);
+  return w.minCoeff() >= -slack;
 }
 
 double PlaneSolver::faceSupport(const NarrowPhaseInput& in, const Vec3& f, ParticleId from) {
@@ -268,9 +349,11 @@ double PlaneSolver::faceSupport(const NarrowPhaseInput& in, const Vec3& f, Parti
   return best;
 }
 
-bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const Vec3& at, const Vec3& towards,
-                            std::vector<Vec3>& out, bool& curved) {
+bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const HullDistance& h, bool isA,
+                            const Vec3& towards, std::vector<Vec3>& out, bool& curved, bool& exact) {
+  const Vec3& at = isA ? h.pointA : h.pointB;
   curved = false;
+  exact = false;
   out.clear();
   const double spacing = 2.0 * side.meanRadius;
   const double nearReach = 1.5 * spacing;
@@ -293,8 +376,8 @@ bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const 
     if (!(q.flags & kParticleSurface) || (q.flags & kParticleLine) || q.n.isZero()) continue;
     const bool near = (q.x - at).squaredNorm() <= nearReach * nearReach;
     if (q.flags & kParticleSheet) {
-      // a sheet: the side facing the contact, and its rim
-      addFace(facing(q, towards), q.x, false, near);
+      // a sheet: the side facing the contact (if it crosses the sheet), and its rim
+      if (presents(q, towards)) addFace(facing(q, towards), q.x, false, near);
       if ((q.flags & kParticleEdge) && q.faceCount == 3) addFace(q.faces[2], q.x, true, near);
       continue;
     }
@@ -308,8 +391,9 @@ bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const 
   // flat faces: normals shared by several particles or by an edge; curved: many distinct normals near `at`
   bool flatNear = false;
   int distinctNear = 0;
+  for (FaceCluster& c : clusters_) c.flat = flatCluster(c, spacing);
   for (const FaceCluster& c : clusters_) {
-    const bool flat = flatCluster(c, spacing);
+    const bool flat = c.flat;
     if (c.near) {
       flatNear = flatNear || flat;
       ++distinctNear;
@@ -326,7 +410,7 @@ bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const 
     }
     for (const FaceCluster& c : clusters_)
       if (c.first.dot(q.n) > kFlat) {
-        flatLocal_[i] = flatCluster(c, spacing) ? 1 : 0;
+        flatLocal_[i] = c.flat ? 1 : 0;
         break;
       }
   }
@@ -337,25 +421,84 @@ bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const 
   // the polytope: each face plane through the outermost counted centre along it, boxed in around `at`
   planes_.clear();
   for (const FaceCluster& c : clusters_) {
-    const bool flat = flatCluster(c, spacing);
+    const bool flat = c.flat;
     if (!flat && !c.near) continue;
     const Vec3 n = c.sum.normalized();
+    if (n.dot(towards) < -0.1) continue;  // a face turned away cannot hold the closest point
     double d = -std::numeric_limits<double>::infinity();
     std::uint32_t top = side.hullLocal.front();
     for (const std::uint32_t i : side.hullLocal)
-      if (const double h = n.dot(side.local[i].x); h > d) {
-        d = h;
+      if (const double along = n.dot(side.local[i].x); along > d) {
+        d = along;
         top = i;
       }
     if (flat) d = std::max(d, faceSupport(in, n, side.local[top].id));
     planes_.emplace_back(n, d);
   }
-  const double box = 12.0 * side.meanRadius;
-  for (int k = 0; k < 3; ++k) {
-    planes_.emplace_back(Vec3::Unit(k), at[k] + box);
-    planes_.emplace_back(-Vec3::Unit(k), box - at[k]);
+  // the particles' hull already is the core at its closest feature when every particle of the feature lies
+  // on the planes of its (flat) faces and the direction lies in the feature's normal cone
+  exact = exactFeature(side, h, isA, towards, spacing);
+  return !planes_.empty();
+}
+
+bool PlaneSolver::coreVertices(std::vector<std::pair<Vec3, double>>& planes, const Vec3& at, double radius,
+                               std::vector<Vec3>& out) {
+  out.clear();
+  // a face, an edge or a corner: points whose hull is the core near `at` (a square of the face; the edge
+  // line with a strip of each face; the corner with a stretch of each edge); more planes (a staircase of
+  // faces, tangent planes of a curved part next to flat ones): the polytope's vertices inside a box
+  const double reach = 12.0 * radius;
+  const std::size_t faces = planes.size();
+  if (faces == 1) {
+    const Vec3& n = planes[0].first;
+    const Vec3 o = at + (planes[0].second - n.dot(at)) * n;
+    const Vec3 u = n.unitOrthogonal() * reach, v = n.cross(n.unitOrthogonal()) * reach;
+    out.assign({o + u + v, o + u - v, o - u + v, o - u - v});
+    return true;
   }
-  polytopeVertices(planes_, box + at.norm(), out);
+  if (faces == 2) {
+    const Vec3 &f1 = planes[0].first, &f2 = planes[1].first;
+    const Vec3 e = f1.cross(f2);
+    if (e.norm() > 1e-3) {
+      const Vec3 dir = e.normalized();
+      const double g = f1.dot(f2), r1 = planes[0].second - f1.dot(at), r2 = planes[1].second - f2.dot(at);
+      const double det = 1.0 - g * g;
+      const Vec3 o = at + ((r1 - g * r2) / det) * f1 + ((r2 - g * r1) / det) * f2;
+      // along each face away from the edge (into the solid side of the other face)
+      Vec3 t1 = f1.cross(dir), t2 = f2.cross(dir);
+      if (t1.dot(f2) > 0.0) t1 = -t1;
+      if (t2.dot(f1) > 0.0) t2 = -t2;
+      for (const double s : {-reach, reach}) {
+        const Vec3 p = o + s * dir;
+        out.push_back(p);
+        out.push_back(p + reach * t1);
+        out.push_back(p + reach * t2);
+      }
+      return true;
+    }
+  }
+  if (faces == 3) {
+    Mat3 m;
+    for (int f = 0; f < 3; ++f) m.row(f) = planes[static_cast<std::size_t>(f)].first.transpose();
+    if (std::abs(m.determinant()) > 1e-3) {
+      const Vec3 corner = m.partialPivLu().solve(Vec3(planes[0].second, planes[1].second, planes[2].second));
+      out.push_back(corner);
+      // each edge (two planes meet) runs away from the corner into the third plane's solid side
+      for (int f = 0; f < 3; ++f) {
+        const Vec3& a = planes[static_cast<std::size_t>((f + 1) % 3)].first;
+        const Vec3& b = planes[static_cast<std::size_t>((f + 2) % 3)].first;
+        Vec3 e = a.cross(b).normalized();
+        if (e.dot(planes[static_cast<std::size_t>(f)].first) > 0.0) e = -e;
+        out.push_back(corner + reach * e);
+      }
+      return true;
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    planes.emplace_back(Vec3::Unit(k), at[k] + reach);
+    planes.emplace_back(-Vec3::Unit(k), reach - at[k]);
+  }
+  polytopeVertices(planes, reach + at.norm(), out);
   return !out.empty();
 }
 
@@ -364,12 +507,13 @@ bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3&
   out.clear();
   const double reach = 6.0 * side.meanRadius;
   Mat3 m = Mat3::Zero(), normals = Mat3::Zero();
-  Vec3 rhs = Vec3::Zero();
+  Vec3 rhs = Vec3::Zero(), meanNormal = Vec3::Zero(), meanPosition = Vec3::Zero();
   int count = 0;
   for (const std::uint32_t i : side.hullLocal) {
     const Local& q = side.local[i];
     if (!(q.flags & kParticleSurface) || (q.flags & kParticleSharp) || q.n.isZero()) continue;
     if ((q.flags & kParticleSheet) && (q.flags & kParticleEdge)) continue;
+    if (!presents(q, towards)) continue;
     if (i < flatLocal_.size() && flatLocal_[i]) continue;
     if ((q.x - at).squaredNorm() > reach * reach) continue;
     const Vec3 n = facing(q, towards);
@@ -378,19 +522,28 @@ bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3&
     m += p;
     rhs += p * q.x;
     normals += n * n.transpose();
+    meanNormal += n;
+    meanPosition += q.x;
     ++count;
   }
   if (count < 4) return false;
+  meanNormal.normalize();
+  meanPosition /= count;
   // the normals spread over a cone (a surface curved both ways) or a fan in one plane (curved one way:
   // a cylinder, whose axis is the plane's normal)
-  const Eigen::SelfAdjointEigenSolver<Mat3> spread(normals);
+  Eigen::SelfAdjointEigenSolver<Mat3> spread;
+  spread.computeDirect(normals);
   if (!(spread.eigenvalues()[1] > 1e-6 * spread.eigenvalues()[2])) return false;  // all alike: flat
   const bool cylinder = spread.eigenvalues()[0] < 0.1 * spread.eigenvalues()[1];
-  const Eigen::SelfAdjointEigenSolver<Mat3> eig(m);
+  Eigen::SelfAdjointEigenSolver<Mat3> eig;
+  eig.computeDirect(m);
   const Vec3 mu = eig.eigenvalues();
   if (!(mu[0] > 1e-12 * mu[2])) return false;
   Vec3 c = Vec3::Zero();
   for (int k = 0; k < 3; ++k) c += eig.eigenvectors().col(k).dot(rhs) / mu[k] * eig.eigenvectors().col(k);
+  // a convex surface has its centre behind it; a concave one (a cloth wrapped round what it touches, the
+  // inside of a bowl) has it in front, and is no sphere about it
+  if (!((c - meanPosition).dot(meanNormal) < 0.0)) return false;
   if (cylinder) {
     const Vec3 axis = spread.eigenvectors().col(0);
     const double half = 20.0 * side.meanRadius;
@@ -400,6 +553,14 @@ bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3&
     out.push_back(c);
   }
   return c.allFinite();
+}
+
+void PlaneSolver::curvedCore(bool onA, bool onB, Choice& out) const {
+  if (onA == onB) return;
+  const std::vector<Vec3>& centres = onA ? centresA_ : centresB_;
+  if (centres.empty() || centres.size() > 2) return;
+  out.curvedSide = onA ? 0 : 1;
+  out.core = {centres.front(), centres.back()};
 }
 
 PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, const Vec3& d0) {
@@ -427,15 +588,59 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
   out.normal = nG;
   out.source = NormalSource::Separation;
   // the sides' cores near the closest points, rebuilt from the faces their particles carry
-  bool curvedA = false, curvedB = false;
-  const bool coreA = localCore(in, a_, hull_.pointA, nG, coreA_, curvedA);
-  const bool coreB = localCore(in, b_, hull_.pointB, -nG, coreB_, curvedB);
+  // (a deformable sheet or chain has no core to rebuild: it has no inside, its normals estimate a surface
+  // that bends from step to step, and its particles are all there is of it; a cloth's face planes, turned
+  // along its folds, would cut off a polytope that is not there)
+  const auto thinDeformable = [&](const Side& side) {
+    const ParticleStore& p = *in.particles;
+    if (in.bodies->info[p.body[side.particles.front().index()].index()].kind != BodyKind::Deformable) return false;
+    for (const ParticleId q : side.particles)
+      if (!(p.flags[q.index()] & (kParticleSheet | kParticleLine))) return false;
+    return true;
+  };
+  const bool thinA = thinDeformable(a_), thinB = thinDeformable(b_);
+  // a side without a core: its counted particles' hull, a thin deformable side's own touching particles (against a
+  // curved core the direction turns from one of them to the next: each patch's plane is its own contacts')
+  const auto coreless = [](const Side& side, bool thin) {
+    return thin ? std::span<const Vec3>(side.points) : std::span<const Vec3>(side.hull);
+  };
+  bool curvedA = false, curvedB = false, exactA = false, exactB = false;
+  const bool coreA = !thinA && localCore(in, a_, hull_, true, nG, centresA_, curvedA, exactA);
+  planesA_.assign(planes_.begin(), planes_.end());
+  if (!coreA) planesA_.clear();
+  const bool coreB = !thinB && localCore(in, b_, hull_, false, -nG, centresB_, curvedB, exactB);
+  planesB_.assign(planes_.begin(), planes_.end());
+  if (!coreB) planesB_.clear();
+  if (exactA && exactB) {  // the particles' hulls are the cores at their closest features
+    out.source = NormalSource::Surface;
+    out.open = hull_.count == 1;  // vertex on vertex
+    return out;
+  }
+  // a side whose core there is one face: a half-space, whose closest-point direction to anything is its
+  // normal (of two such faces, the one across which the particles are farther apart)
+  const Vec3 faceA = coreA && !curvedA && planesA_.size() == 1 ? planesA_[0].first : Vec3::Zero();
+  const Vec3 faceB = coreB && !curvedB && planesB_.size() == 1 ? Vec3(-planesB_[0].first) : Vec3::Zero();
+  if (!faceA.isZero() || !faceB.isZero()) {
+    Vec3 n = faceA.isZero() ? faceB : faceA;
+    if (!faceA.isZero() && !faceB.isZero() && evaluate(faceB).separation > evaluate(faceA).separation) n = faceB;
+    if (n.dot(nG) > 0.5) {
+      out.normal = n;
+      out.source = NormalSource::Surface;
+      out.open = false;
+      return out;
+    }
+  }
+  if (coreA && !curvedA) coreVertices(planesA_, hull_.pointA, a_.meanRadius, coreA_);
+  else coreA_.assign(centresA_.begin(), centresA_.end());
+  if (coreB && !curvedB) coreVertices(planesB_, hull_.pointB, b_.meanRadius, coreB_);
+  else coreB_.assign(centresB_.begin(), centresB_.end());
   if (coreA || coreB) {
-    const HullDistance c = hullDistance(coreA ? std::span<const Vec3>(coreA_) : std::span<const Vec3>(a_.hull),
-                                        coreB ? std::span<const Vec3>(coreB_) : std::span<const Vec3>(b_.hull));
+    const HullDistance c = hullDistance(coreA ? std::span<const Vec3>(coreA_) : coreless(a_, thinA),
+                                        coreB ? std::span<const Vec3>(coreB_) : coreless(b_, thinB));
     if (c.separated && c.direction.dot(nG) > 0.5) {
       out.normal = c.direction;
       out.source = NormalSource::Surface;
+      curvedCore(curvedA && !coreB, curvedB && !coreA, out);
       // corner on corner: two points, their line is all the geometry says
       int pointsA = 0, pointsB = 0;
       for (int k = 0; k < c.count; ++k) {
@@ -494,9 +699,12 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
   curvedB = surfB && !flatB && curvatureCentres(b_, hull_.pointB, -nG, centresB_);
   Vec3 n = Vec3::Zero();
   if (curvedA || curvedB) {
-    const HullDistance c = hullDistance(curvedA ? std::span<const Vec3>(centresA_) : std::span<const Vec3>(a_.hull),
-                                        curvedB ? std::span<const Vec3>(centresB_) : std::span<const Vec3>(b_.hull));
-    if (c.separated) n = c.direction;
+    const HullDistance c = hullDistance(curvedA ? std::span<const Vec3>(centresA_) : coreless(a_, thinA),
+                                        curvedB ? std::span<const Vec3>(centresB_) : coreless(b_, thinB));
+    if (c.separated) {
+      n = c.direction;
+      curvedCore(curvedA && !coreB && !curvedB, curvedB && !coreA && !curvedA, out);
+    }
   }
   if (n.isZero()) {
     if (surfA && !surfB) {
@@ -654,7 +862,8 @@ void PlaneSolver::describe(Side& side) const {
   // best-fit line and plane of the centres
   Mat3 cov = Mat3::Zero();
   for (const Vec3& x : points) cov += (x - side.centroid) * (x - side.centroid).transpose();
-  const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov);
+  Eigen::SelfAdjointEigenSolver<Mat3> eig;
+  eig.computeDirect(cov);
   side.line = eig.eigenvectors().col(2);
   double farthest = 0.0;
   for (const Vec3& x : points) {
@@ -805,6 +1014,20 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
   // the local particles of both sides, and the plane across which they are farthest apart
   gather(in, a_, settings_.validationRings);
   gather(in, b_, settings_.validationRings);
+  if (patch.a == patch.b) {
+    // a body touching itself: neighbours within reach of both sides belong to neither (a layer pressed
+    // together side by side shares them)
+    const auto drop = [&](Side& from, const Side& other) {
+      if (++stamp_ == 0) {
+        std::fill(mark_.begin(), mark_.end(), 0u);
+        stamp_ = 1;
+      }
+      for (const Local& q : other.local) mark_[q.id.index()] = stamp_;
+      std::erase_if(from.local, [&](const Local& q) { return !q.own && mark_[q.id.index()] == stamp_; });
+    };
+    drop(a_, b_);
+    drop(b_, a_);
+  }
   Vec3 d0 = Vec3::Zero();
   for (const std::uint32_t ci : idx) d0 += (isFlipped(ci) ? -1.0 : 1.0) * set.contacts[ci].normal;
   if (!(d0.norm() > 1e-12)) d0 = b_.centroid - a_.centroid;
@@ -815,6 +1038,7 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
 
   Vec3 best = d0;
   NormalSource bestSource = NormalSource::CentreLine;
+  patch.curvedSide = -1;
   Evaluation bestEval{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   bool valid = false;
   const Choice plane = separationPlane(in, d0);
@@ -833,9 +1057,13 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
     bestSource = source;
     bestEval = e;
     valid = e.separation >= -2.0 * tol;
+    if (valid && source == plane.source) {
+      patch.curvedSide = plane.curvedSide;
+      patch.core = plane.core;
+    }
     // a single contact or parallel edges: where the pair moves, its next contacts may decide
     const bool single = idx.size() == 1;
-    if (valid && (single || patch.planeCase == PlaneCase::EdgeEdge23)) {
+    if (valid && ((single && plane.open) || patch.planeCase == PlaneCase::EdgeEdge23)) {
       Vec3 ahead;
       PlaneCase predicted;
       const bool found = lookAhead(in, single, ahead, predicted, stats);
@@ -848,6 +1076,7 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
           bestEval = ea;
           patch.lookAhead = true;
           patch.lookAheadCase = predicted;
+          patch.curvedSide = -1;
           ++stats.lookAheadsDecided;
         }
       }
@@ -877,12 +1106,12 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
   patch.validated = valid;
   if (!valid) ++stats.unvalidated;
 
-  // depth of every contact along the normal: r_a + r_b - n . (x_b - x_a), the plane model's overlap, in which
+  // depth of every contact along its normal: r_a + r_b - n . (x_b - x_a), the plane model's overlap, in which
   // a side's particle tops form a flat face
   patch.depth = 0.0;
   for (const std::uint32_t ci : idx) {
     const ParticleContact& c = set.contacts[ci];
-    const Vec3 n = isFlipped(ci) ? Vec3(-patch.normal) : patch.normal;
+    const Vec3 n = contactNormal(patch, p.position[c.a.index()], p.position[c.b.index()], isFlipped(ci));
     const double d = p.radius[c.a.index()] + p.radius[c.b.index()] - n.dot(p.position[c.b.index()] - p.position[c.a.index()]);
     depthAlongNormal[ci] = d;
     patch.depth = std::max(patch.depth, d);

@@ -87,6 +87,8 @@ class PlaneSolver {
     NormalSource source = NormalSource::Separation;
     bool sharpA = false, sharpB = false;  // the closest features are on edges or corners
     bool open = false;  // the geometry leaves the normal open: corner on corner, or nothing rebuilt
+    std::int8_t curvedSide = -1;  // as ContactPatch::curvedSide
+    std::array<Vec3, 2> core{Vec3::Zero(), Vec3::Zero()};
   };
   /// A contact of the look-ahead: local particles i (of A) and j (of B) meet at time `time` [s].
   struct Event {
@@ -97,11 +99,15 @@ class PlaneSolver {
   void gather(const NarrowPhaseInput& in, Side& side, int rings);
   [[nodiscard]] static bool counts(const Local& q, const Vec3& towards);
   [[nodiscard]] static Vec3 facing(const Local& q, const Vec3& towards);
+  /// Whether q shows a surface to `towards` (a sheet only to what is across it).
+  [[nodiscard]] static bool presents(const Local& q, const Vec3& towards);
   /// The counted centres of `side` seen along `towards` (into hull/hullLocal); whether they changed.
   static bool select(Side& side, const Vec3& towards);
   [[nodiscard]] Evaluation evaluate(const Vec3& n) const;
   /// Steps 2 and 3 on the sides' local particles, starting from direction d0 (A to B).
   Choice separationPlane(const NarrowPhaseInput& in, const Vec3& d0);
+  /// Records in `out` the curved core of side A (onA) or B (onB) that gave its normal, when just one did.
+  void curvedCore(bool onA, bool onB, Choice& out) const;
   /// The surface normal of side X at its closest feature, seen along `towards`; false when the feature is sharp.
   bool featureNormal(const Side& side, const HullDistance& h, bool isA, const Vec3& towards, Vec3& normal,
                      bool& flat) const;
@@ -118,8 +124,16 @@ class PlaneSolver {
   /// carry (each through the outermost local particle along its normal; curved particles near `at` add
   /// their tangent planes), or, where the surface there is curved without flat faces, its centres of
   /// curvature (one point, or two for a surface curved one way). False when the particles carry no faces.
-  bool localCore(const NarrowPhaseInput& in, const Side& side, const Vec3& at, const Vec3& towards, std::vector<Vec3>& out,
-                 bool& curved);
+  bool localCore(const NarrowPhaseInput& in, const Side& side, const HullDistance& h, bool isA, const Vec3& towards,
+                 std::vector<Vec3>& out, bool& curved, bool& exact);
+  /// The points whose hull is the polytope of face planes n . x <= d near `at` (appends box planes when
+  /// more than three faces); radius: the side's particle radius (sets the reach).
+  static bool coreVertices(std::vector<std::pair<Vec3, double>>& planes, const Vec3& at, double radius,
+                           std::vector<Vec3>& out);
+  /// Whether the particles of side X's closest feature (hull simplex) lie on the planes of their flat faces
+  /// (planes_) and `towards` is in the feature's normal cone: the particle hull is the core there.
+  [[nodiscard]] bool exactFeature(const Side& side, const HullDistance& h, bool isA, const Vec3& towards,
+                                  double spacing) const;
   /// The outermost centre along face normal f (world) of the particles carrying that face, climbing from
   /// particle `from` along connectors (a few steps): the face's plane of the core.
   [[nodiscard]] static double faceSupport(const NarrowPhaseInput& in, const Vec3& f, ParticleId from);
@@ -150,6 +164,7 @@ class PlaneSolver {
     int count = 0;
     bool sharp = false;  // a face of an edge or corner particle
     bool near = false;   // has a member near the closest point
+    bool flat = false;   // flatCluster()
   };
   /// A flat face: several particles share the normal over an area (not along one line, as the rulings of a
   /// cylinder do), or an edge bounds it.
@@ -159,7 +174,7 @@ class PlaneSolver {
   std::vector<Vec3> velocityA_, velocityB_;  // per local particle
   std::vector<Event> events_;
   Side aheadA_, aheadB_;                 // the predicted configuration's contact particles
-  std::vector<std::pair<Vec3, double>> planes_;
+  std::vector<std::pair<Vec3, double>> planes_, planesA_, planesB_;
   std::vector<ParticleId> ringIds_, frontier_, next_;
   std::vector<std::uint32_t> mark_;
   std::uint32_t stamp_ = 0;

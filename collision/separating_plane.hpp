@@ -72,7 +72,8 @@ enum class NormalSource : std::uint8_t {
   Plane,           ///< a plane's own normal
   Separation,      ///< the direction of greatest separation of the two sides' local particle hulls
   Surface,         ///< the smooth surface normals of the sides, interpolated at the closest points
-  ContactLines,    ///< none validated: each contact is resolved along its own centre line
+  ContactLines,    ///< each contact resolved along its own centre line: no plane validated, or a deformable body
+                   ///< touching itself (layers that slide over each other, both sides' normals estimates)
 };
 inline constexpr std::size_t kNormalSourceCount = 13;
 

@@ -236,6 +236,8 @@ void World::refreshContacts() {
   stats_.candidates = found.candidates;
   stats_.lookAheads = found.lookAheads;
   stats_.unvalidatedPatches = found.unvalidatedPatches;
+  stats_.contactLinePatches = found.contactLinePatches;
+  stats_.lookAheadsDecided = found.lookAheadsDecided;
 }
 
 void World::applyBreakage() {
@@ -470,6 +472,8 @@ void World::detectCollisions() {
   stats_.candidates = np.candidates;
   stats_.lookAheads = np.lookAheads;
   stats_.unvalidatedPatches = np.unvalidated;
+  stats_.contactLinePatches = np.contactLines;
+  stats_.lookAheadsDecided = np.lookAheadsDecided;
   stats_.patchesReused = np.reused;
   stats_.bodyPairs = bodyPairs_.size();
   stats_.planePairs = planePairs_.size();
@@ -603,6 +607,12 @@ void World::buildContactPoints() {
   const std::size_t np = ps.patches.size();
   const double dt = settings_.dt;
   const auto kind = [&](BodyId b) { return bodies_.info[b.index()].kind; };
+  // a contact's normal, from its particle a to b (a plane's contacts: the patch's)
+  const auto normalOf = [&](const ContactPatch& patch, std::uint32_t contact) -> Vec3 {
+    const ParticleContact& c = cs.contacts[contact];
+    if (!c.b.valid()) return patch.normal;
+    return contactNormal(patch, particles_.position[c.a.index()], particles_.position[c.b.index()], ps.flipped[contact] != 0);
+  };
   // how a patch becomes points: every contact on its own centre line (raw normals; point masses of
   // deformable bodies where the patch has no valid plane), every contact on the patch's plane (small
   // patches; breakable bodies, whose rod loads follow where the contacts are), or a rigid patch reduced
@@ -645,11 +655,10 @@ void World::buildContactPoints() {
     for (std::size_t j = begin; j < end; ++j) {
       const ContactPatch& patch = ps.patches[j];
       const Side sideA = sideOf(patch.a), sideB = sideOf(patch.b);
-      const bool deformable = sideA.kind == BodyKind::Deformable || sideB.kind == BodyKind::Deformable;
       const bool fixedA = sideA.kind == BodyKind::Static, fixedB = sideB.kind == BodyKind::Static;
       std::uint8_t mode = kAll;
       if (fixedA && fixedB) mode = kNone;
-      else if (settings_.rawNormals || (deformable && !patch.validated && !patch.plane.valid())) mode = kRaw;
+      else if (settings_.rawNormals || patch.source == NormalSource::ContactLines) mode = kRaw;
       const std::uint32_t* idx = ps.contacts.data() + patch.first;
       std::uint32_t* kept = keptContacts_.data() + patch.first;
       std::uint32_t count = 0;
@@ -658,7 +667,8 @@ void World::buildContactPoints() {
           const ParticleContact& c = cs.contacts[idx[k]];
           const double depth = mode == kRaw ? c.depth : ps.depthAlongNormal[idx[k]];
           if (depth < 0.0) {
-            const Vec3& n = mode == kRaw ? c.normal : patch.normal;
+            // (the patch's normal as the contact sees it: from its particle a to b)
+            const Vec3 n = mode == kRaw ? c.normal : normalOf(patch, idx[k]);
             const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
             const double approach = std::max(0.0, n.dot(velocityAt(sideA, c.a, c.point) - velocityAt(sideB, c.b, c.point)));
             if (-depth > settings_.speculativeDistance * rsum + approach * dt) continue;
@@ -742,7 +752,8 @@ void World::buildContactPoints() {
           for (std::uint32_t k = 0; k < count; ++k) addPoint(cs.contacts[kept[k]], cs.contacts[kept[k]].normal, cs.contacts[kept[k]].depth);
           continue;
         case kAll:
-          for (std::uint32_t k = 0; k < count; ++k) addPoint(cs.contacts[kept[k]], patch.normal, ps.depthAlongNormal[kept[k]]);
+          for (std::uint32_t k = 0; k < count; ++k)
+            addPoint(cs.contacts[kept[k]], normalOf(patch, kept[k]), ps.depthAlongNormal[kept[k]]);
           continue;
         default: break;
       }
@@ -859,10 +870,12 @@ void World::integratePositions() {
         continue;
       }
       const double sep = (ra + particles_.radius[c.b.index()]) * (1.0 - settings_.slop);
-      // written for the deformable particle (the normal points from A to B)
-      const bool line = !patch.validated;
-      if (aDef) deformableContacts_.push_back({c.a, c.b, -patch.normal, sep, line, !bDef, mu});
-      else deformableContacts_.push_back({c.b, c.a, patch.normal, sep, line, true, mu});
+      // written for the deformable particle (the normal points from A to B; a flipped contact's a is on B)
+      const bool line = patch.source == NormalSource::ContactLines;
+      const Vec3 n = contactNormal(patch, particles_.position[c.a.index()], particles_.position[c.b.index()],
+                                   patches_.flipped[patches_.contacts[k]] != 0);
+      if (aDef) deformableContacts_.push_back({c.a, c.b, -n, sep, line, !bDef, mu});
+      else deformableContacts_.push_back({c.b, c.a, n, sep, line, true, mu});
     }
   }
   in.contacts = deformableContacts_;

@@ -140,8 +140,9 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
             second = b;
             break;
           }
-      // neighbours all on one line through the site: a chain one particle thick
-      bool line = !present.empty();
+      // neighbours on both sides of the site along one line: a chain one particle thick (a site with a single
+      // neighbour is the tip of a solid, not of a chain)
+      bool line = present.size() >= 2;
       for (const Vec3& d : present) line = line && std::abs(std::abs(d.dot(present.front())) - 1.0) < 1e-9;
       if (present.empty()) {
         // a lone site: surface, no preferred direction
