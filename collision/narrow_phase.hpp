@@ -1,13 +1,12 @@
 #pragma once
-// The narrow phase driver (DESIGN section 4): the contacts of each body pair, body-plane pair and
-// deformable body are grouped into patches by connector adjacency, and each patch gets a local separating
-// plane (separating_plane.hpp) with its normal, points and depths.
-//
-// Patches: two contacts of one group share a patch when their particles on side A are the same or
-// connector neighbours AND their particles on side B are (for planes: side A only) AND their centre lines
-// are within 78 degrees of each other (a lattice face tilts a contact's centre line by up to 35 degrees;
-// a wall and a floor differ by 90), closed transitively. So a peg touching both walls of a slot makes two
-// patches even if the peg is one particle wide, and its near-contacts with the slot's floor a third.
+// The narrow phase driver (DESIGN section 4; docs/narrow-phase.md): the contacts of each body pair,
+// body-plane pair and deformable body touching itself are grouped into local patches (patch_builder.hpp:
+// grown from the deepest contact over connector neighbours while the contacts' surface directions stay
+// within a bound), and each patch gets a separating plane from the local particles (plane_solver.hpp) with
+// its normal, point and depths. A patch whose plane does not validate is split in two, recursively; a single
+// contact that still does not validate, and a deformable body's contacts with itself, are resolved along
+// their centre lines (NormalSource::ContactLines, counted). Patches of rigid pairs that barely moved are
+// taken over from the last step.
 
 #include <array>
 #include <cstdint>
