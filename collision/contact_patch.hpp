@@ -32,7 +32,7 @@ struct ContactPatch {
   bool lookAhead = false;         ///< a look-ahead decided the plane (the configuration it predicted gave the normal)
   PlaneCase lookAheadCase = PlaneCase::VertexFace11;  ///< when lookAhead: the case of the predicted configuration
   /// Where the plane came from one side's curved core (a sphere's centre: core[0] == core[1]; a cylinder's
-  /// axis: the segment core[0]..core[1], world) against a side without a core (a deformable body): that
+  /// axis: the segment core[0]..core[1], world) against a deformable sheet or chain (which has no core): that
   /// side, 0 (A) or 1 (B); each contact then has the core's tangent plane at it (contactNormal). -1 elsewhere.
   std::int8_t curvedSide = -1;
   std::array<Vec3, 2> core{Vec3::Zero(), Vec3::Zero()};

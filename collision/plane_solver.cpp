@@ -376,9 +376,16 @@ bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const 
     if (!(q.flags & kParticleSurface) || (q.flags & kParticleLine) || q.n.isZero()) continue;
     const bool near = (q.x - at).squaredNorm() <= nearReach * nearReach;
     if (q.flags & kParticleSheet) {
-      // a sheet: the side facing the contact (if it crosses the sheet), and its rim
+      // a sheet: the side facing the contact (if it crosses the sheet); on its rim both sides and the rim's
+      // face, whose planes cut out the sheet's core there, a strip of no thickness (its edge faces every way
+      // from one side of the sheet round to the other)
+      if ((q.flags & kParticleEdge) && q.faceCount == 3) {
+        addFace(q.faces[0], q.x, true, near);
+        addFace(q.faces[1], q.x, true, near);
+        addFace(q.faces[2], q.x, true, near);
+        continue;
+      }
       if (presents(q, towards)) addFace(facing(q, towards), q.x, false, near);
-      if ((q.flags & kParticleEdge) && q.faceCount == 3) addFace(q.faces[2], q.x, true, near);
       continue;
     }
     if (q.flags & (kParticleEdge | kParticleCorner)) {
@@ -640,7 +647,7 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
     if (c.separated && c.direction.dot(nG) > 0.5) {
       out.normal = c.direction;
       out.source = NormalSource::Surface;
-      curvedCore(curvedA && !coreB, curvedB && !coreA, out);
+      curvedCore(curvedA && thinB, curvedB && thinA, out);
       // corner on corner: two points, their line is all the geometry says
       int pointsA = 0, pointsB = 0;
       for (int k = 0; k < c.count; ++k) {
@@ -703,7 +710,7 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
                                         curvedB ? std::span<const Vec3>(centresB_) : coreless(b_, thinB));
     if (c.separated) {
       n = c.direction;
-      curvedCore(curvedA && !coreB && !curvedB, curvedB && !coreA && !curvedA, out);
+      curvedCore(curvedA && thinB && !curvedB, curvedB && thinA && !curvedA, out);
     }
   }
   if (n.isZero()) {

@@ -47,9 +47,9 @@ struct Bounds {
 };
 
 /// The pairs and variants that do not meet the targets yet, at their measured level (2000 poses) rounded up:
-/// curved rims (capsule and cylinder ends) and the rims of one-particle-thick plates, where the particles'
-/// faces end before the solid does; HCP edges and corners, whose outermost particles stand back from the
-/// solid's edge; and estimated normals on a tilted mesh box, whose lattice steps blur its faces.
+/// curved rims (capsule and cylinder ends), where the particles' faces end before the solid does; HCP edges
+/// and corners, whose outermost particles stand back from the solid's edge (an HCP plate's planes do not
+/// all separate); and estimated normals on a tilted mesh box, whose lattice steps blur its faces.
 struct Shortfall {
   const char* pair;
   const char* variant;
@@ -67,9 +67,7 @@ const Shortfall kShortfalls[] = {
     {"mesh_box", "shape", {0.5, 2.0, 2.0, 11.0, 0.01}},
     {"mesh_box", "estimated", {3.5, 25.0, 10.0, 35.0, 0.025}},
     {"mesh_box", "hcp", {0.5, 2.0, 2.0, 17.0, 0.025}},
-    {"plate_box", "shape", {0.5, 2.0, 2.0, 17.0, 0.015}},
-    {"plate_box", "estimated", {0.5, 2.0, 2.0, 17.0, 0.015}},
-    {"plate_box", "hcp", {0.5, 2.0, 2.0, 33.0, 0.04}},
+    {"plate_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.015}},
 };
 
 class PlaneAccuracy : public ::testing::TestWithParam<std::tuple<Pair, Variant>> {};
