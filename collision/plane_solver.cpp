@@ -667,8 +667,6 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
   bool flatA = false, flatB = false;
   const bool surfA = featureNormal(a_, hull_, true, nG, nA, flatA);
   const bool surfB = featureNormal(b_, hull_, false, -nG, nB, flatB);
-  out.sharpA = !surfA;
-  out.sharpB = !surfB;
   if (!surfA && !surfB) {
     // edge on edge: across both edges; edge and corner: from the line to the point; corner and corner:
     // between the points; where a feature cannot be rebuilt, the hulls' direction

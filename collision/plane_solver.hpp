@@ -85,7 +85,6 @@ class PlaneSolver {
     bool found = false;       // a normal was made
     Vec3 normal = Vec3::Zero();
     NormalSource source = NormalSource::Separation;
-    bool sharpA = false, sharpB = false;  // the closest features are on edges or corners
     bool open = false;  // the geometry leaves the normal open: corner on corner, or nothing rebuilt
     std::int8_t curvedSide = -1;  // as ContactPatch::curvedSide
     std::array<Vec3, 2> core{Vec3::Zero(), Vec3::Zero()};

@@ -11,18 +11,13 @@
 #include "collision/normal_estimation.hpp"
 #include "engine/builders/fill.hpp"
 #include "engine/builders/shapes.hpp"
+#include "tests/support/test_support.hpp"
 
 namespace volpar {
 namespace {
 
 double angleDeg(const Vec3& a, const Vec3& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / std::numbers::pi;
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5)];
 }
 
 ParticleCloud filled(const SolidShape& shape, Lattice lattice, double r) {
@@ -139,7 +134,7 @@ TEST(NormalEstimation, CurvedObliqueAndHcpSurfacesAgreeWithTheExactNormals) {
   for (const Case& k : cases) {
     const Agreement a = agreement(k.cloud);
     std::printf("%-24s face particles %4d: median %5.2f  p95 %5.2f  max %5.2f deg; called sharp %d, missed %d\n", k.name,
-                a.surface, percentile(a.angles, 0.5), percentile(a.angles, 0.95),
+                a.surface, test::percentile(a.angles, 0.5), test::percentile(a.angles, 0.95),
                 a.angles.empty() ? 0.0 : *std::max_element(a.angles.begin(), a.angles.end()), a.sharp, a.missed);
   }
 }

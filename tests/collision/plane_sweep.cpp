@@ -82,15 +82,6 @@ SweepShape sweepPlate(Lattice lattice, bool estimated) {
   return make("plate", s, BoxShape(s.size), lattice, 0.025, estimated);
 }
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const auto i = static_cast<std::size_t>(pos);
-  const double f = pos - static_cast<double>(i);
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
-}
-
 std::string summary(const std::vector<double>& v) {
   char buf[160];
   std::snprintf(buf, sizeof buf, "n %5zu  median %6.2f  p95 %6.2f  p99 %6.2f  max %6.2f deg", v.size(), percentile(v, 0.5),

@@ -13,6 +13,7 @@
 #include "engine/builders/fill.hpp"
 #include "engine/core/source_shape.hpp"
 #include "engine/world.hpp"
+#include "tests/support/test_support.hpp"
 
 namespace volpar::test {
 
@@ -50,8 +51,6 @@ struct SweepStats {
 };
 
 [[nodiscard]] SweepStats sweepPlanes(const SweepShape& a, const SweepShape& b, const SweepSettings& settings);
-
-[[nodiscard]] double percentile(std::vector<double> v, double q);
 /// "n ... median ... p95 ... max ... deg"
 [[nodiscard]] std::string summary(const std::vector<double>& v);
 void printSweep(const std::string& name, const SweepStats& s);

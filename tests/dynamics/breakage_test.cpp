@@ -13,18 +13,6 @@
 namespace volpar {
 namespace {
 
-std::string fmt(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
-std::string positionList(const std::vector<Vec3>& xs) {
-  std::string s;
-  for (const Vec3& x : xs) s += (s.empty() ? "[" : ", [") + fmt(x.x()) + ", " + fmt(x.y()) + ", " + fmt(x.z()) + "]";
-  return s;
-}
-
 /// Ten 0.1 kg particles in a row along x (spacing 0.1 m, radius 0.05 m) joined by rods of `strength`,
 /// spinning at 10 rad/s about z without gravity. The middle rod carries the centripetal force of the five
 /// particles beyond it: 0.1 kg * 100 s^-2 * (0.05 + 0.15 + 0.25 + 0.35 + 0.45) m = 12.5 N.
@@ -33,8 +21,8 @@ World spinningChain(double strength) {
   for (int i = 0; i < 10; ++i) xs.emplace_back(-0.45 + 0.1 * i, 0.0, 0.0);
   return test::worldFromString("dt: 0.004166666666666667\nsteps: 1\ngravity: [0, 0, 0]\nbodies:\n"
                                "  - name: chain\n    particle_mass: 0.1\n    connectors: {rods: {strength: " +
-                               fmt(strength) + "}}\n    velocity: [0.3, -0.2, 0.1]\n    angular_velocity: [0, 0, 10]\n"
-                               "    shape:\n      particles: {radius: 0.05, positions: [" + positionList(xs) + "]}\n");
+                               test::exactNumber(strength) + "}}\n    velocity: [0.3, -0.2, 0.1]\n    angular_velocity: [0, 0, 10]\n"
+                               "    shape:\n      particles: {radius: 0.05, positions: [" + test::positionList(xs) + "]}\n");
 }
 
 constexpr double kMiddleTension = 12.5;
@@ -114,7 +102,7 @@ TEST(Breakage, FragmentMassPropertiesEqualThoseOfABodyBuiltFromItsParticles) {
     for (const ParticleId p : info.particles) xs.push_back(w.particles().position[p.index()]);
     World direct = test::worldFromString("dt: 0.004166666666666667\nsteps: 1\ngravity: [0, 0, 0]\nbodies:\n"
                                          "  - particle_mass: 0.1\n    connectors: {rods: {strength: 1000}}\n"
-                                         "    shape:\n      particles: {radius: 0.05, positions: [" + positionList(xs) +
+                                         "    shape:\n      particles: {radius: 0.05, positions: [" + test::positionList(xs) +
                                          "]}\n");
     const BodyInfo& ref = direct.bodies().info[0];
     const BodyState& rs = direct.bodies().state[0];
@@ -174,7 +162,7 @@ TEST(Breakage, RecomputedNormalsAfterOneBreakAreBoundedByItsNeighbourhood) {
   World w = test::worldFromString("dt: 0.004166666666666667\nsteps: 1\ngravity: [0, 0, 0]\nbodies:\n"
                                   "  - kind: deformable\n    particle_mass: 0.1\n"
                                   "    connectors: {springs: {stiffness: 20000, damping: 1, strain_limit: 0.1}}\n"
-                                  "    shape:\n      particles: {radius: 0.05, positions: [" + positionList(xs) +
+                                  "    shape:\n      particles: {radius: 0.05, positions: [" + test::positionList(xs) +
                                   "], connectors: [" + pairs + "]}\n");
   ASSERT_EQ(w.particles().size(), 1001u);
   std::size_t surface = 0;

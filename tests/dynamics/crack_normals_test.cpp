@@ -18,17 +18,6 @@
 namespace volpar {
 namespace {
 
-std::string fmt(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
-double percentile(std::vector<double> v, double q) {
-  std::sort(v.begin(), v.end());
-  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1))];
-}
-
 enum class Grid { Cubic, Hcp };
 
 /// About 10 x 10 x 10 particles of radius r in a lattice, with springs between neighbours.
@@ -83,12 +72,10 @@ TEST_P(CleanCut, CrackParticlesGetTheCutsNormal) {
         }
       }
   ASSERT_GT(crossing.size(), 50u);
-  std::string positions;
-  for (const Vec3& x : xs) positions += (positions.empty() ? "[" : ", [") + fmt(x.x()) + ", " + fmt(x.y()) + ", " + fmt(x.z()) + "]";
   World w = test::worldFromString("dt: 0.004166666666666667\nsteps: 1\ngravity: [0, 0, 0]\nbodies:\n"
                                   "  - kind: deformable\n    particle_mass: 0.1\n"
                                   "    connectors: {springs: {stiffness: 200, strain_limit: 0.05}}\n"
-                                  "    shape:\n      particles: {radius: " + fmt(r) + ", positions: [" + positions +
+                                  "    shape:\n      particles: {radius: " + test::exactNumber(r) + ", positions: [" + test::positionList(xs) +
                                   "], connectors: [" + pairs + "]}\n");
   ASSERT_EQ(w.particles().size(), xs.size());
   // one half moved half a spacing away along the cut's normal before the first step: a spring across the cut
@@ -131,11 +118,11 @@ TEST_P(CleanCut, CrackParticlesGetTheCutsNormal) {
   EXPECT_EQ(without, 0u);  // no crack particle left without a normal
   ASSERT_GT(inner.size(), 30u);
   ASSERT_FALSE(rim.empty());
-  const double p95 = percentile(inner, 0.95);
+  const double p95 = test::percentile(inner, 0.95);
   std::printf("%s: %zu crack particles inside the block, median %.2f p95 %.2f max %.2f deg; %zu on its rim, median "
               "%.2f p95 %.2f deg\n",
-              cut.name, inner.size(), percentile(inner, 0.5), p95, *std::max_element(inner.begin(), inner.end()),
-              rim.size(), percentile(rim, 0.5), percentile(rim, 0.95));
+              cut.name, inner.size(), test::percentile(inner, 0.5), p95, *std::max_element(inner.begin(), inner.end()),
+              rim.size(), test::percentile(rim, 0.5), test::percentile(rim, 0.95));
   EXPECT_LE(p95, cut.bound);
 }
 

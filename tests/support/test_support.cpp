@@ -2,6 +2,7 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -53,5 +54,27 @@ CommandResult runCommand(const std::string& command) {
 }
 
 std::string volparBinary() { return VOLPAR_BINARY; }
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const auto i = static_cast<std::size_t>(pos);
+  const double f = pos - static_cast<double>(i);
+  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+}
+
+std::string exactNumber(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+std::string positionList(const std::vector<Vec3>& xs) {
+  std::string s;
+  for (const Vec3& x : xs)
+    s += (s.empty() ? "[" : ", [") + exactNumber(x.x()) + ", " + exactNumber(x.y()) + ", " + exactNumber(x.z()) + "]";
+  return s;
+}
 
 }  // namespace volpar::test

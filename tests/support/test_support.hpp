@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <vector>
 
 #include "engine/scene/scene_build.hpp"
 #include "engine/scene/scene_loader.hpp"
@@ -32,5 +33,14 @@ CommandResult runCommand(const std::string& command);
 
 /// The volpar executable built with these tests.
 std::string volparBinary();
+
+/// The q-quantile (0..1) of v, interpolated between neighbouring ranks; 0 for an empty v.
+[[nodiscard]] double percentile(std::vector<double> v, double q);
+
+/// A number as YAML reads it back exactly (17 significant digits).
+[[nodiscard]] std::string exactNumber(double v);
+
+/// "[x, y, z], [x, y, z], ..." for a scene's particle list, every coordinate exact.
+[[nodiscard]] std::string positionList(const std::vector<Vec3>& xs);
 
 }  // namespace volpar::test
