@@ -4,12 +4,15 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 namespace volpar {
 
 namespace {
 
 constexpr double kFacing = 0.05;      // a neighbour's normal faces the other side: n . d above this
+constexpr int kFitRings = 3;          // rings of neighbours a curved core's fit reaches
+constexpr double kFan = 0.94;        // cos 20 degrees: faces closer than this beside each other are a curved surface's
 constexpr double kFlat = 0.99985;     // cos 1 degree: the normals of a flat side agree within this
 constexpr double kAcross = 0.3;       // a sheet faces a direction that crosses it at more than 17 degrees
 
@@ -242,7 +245,6 @@ void polytopeVertices(const std::vector<std::pair<Vec3, double>>& planes, double
 }  // namespace
 
 bool PlaneSolver::flatCluster(const FaceCluster& c, double spacing) {
-  if (c.sharp) return true;
   if (c.count < 2) return false;
   // the members' spread across the normal, in a basis (u, v) of the plane: a line of them (the smaller
   // principal variance about nothing) is a ruling of a curved surface
@@ -398,7 +400,25 @@ bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const 
   // flat faces: normals shared by several particles or by an edge; curved: many distinct normals near `at`
   bool flatNear = false;
   int distinctNear = 0;
-  for (FaceCluster& c : clusters_) c.flat = flatCluster(c, spacing);
+  // a face that an edge bounds is flat, unless faces a few degrees apart lie beside it: the rulings of a
+  // curved surface (a cylinder's side, each ruling ending at the rim) in the lattice's steps
+  for (FaceCluster& c : clusters_) {
+    c.flat = flatCluster(c, spacing);
+    if (c.flat || !c.sharp) continue;
+    const Vec3 n = c.sum.normalized();
+    int beside = 0;
+    Mat3 fan = n * n.transpose();
+    for (const FaceCluster& o : clusters_) {
+      const Vec3 m = o.sum.normalized();
+      if (&o == &c || o.first.dot(c.first) > kFlat || !(m.dot(n) > kFan)) continue;
+      fan += m * m.transpose();
+      ++beside;
+    }
+    // (a fan: the normals turn about one axis, as a cylinder's do)
+    Eigen::SelfAdjointEigenSolver<Mat3> turn;
+    if (beside >= 2) turn.computeDirect(fan);
+    c.flat = beside == 0 || (beside >= 2 && !(turn.eigenvalues()[0] < 0.05 * turn.eigenvalues()[1]));
+  }
   for (const FaceCluster& c : clusters_) {
     const bool flat = c.flat;
     if (c.near) {
@@ -422,6 +442,12 @@ bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const 
       }
   }
   if (!flatNear && distinctNear >= 3 && curvatureCentres(side, at, towards, out)) {
+    curved = true;
+    return true;
+  }
+  int curvedNear = 0;
+  for (const FaceCluster& c : clusters_) curvedNear += c.near && !c.flat ? 1 : 0;
+  if (flatNear && curvedNear >= 1 && roundedCore(in, side, at, towards, out)) {
     curved = true;
     return true;
   }
@@ -560,6 +586,106 @@ bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3&
     out.push_back(c);
   }
   return c.allFinite();
+}
+
+bool PlaneSolver::roundedCore(const NarrowPhaseInput& in, const Side& side, const Vec3& at, const Vec3& towards,
+                              std::vector<Vec3>& out) {
+  // a surface curved one way (a cylinder's side) that flat faces cut off (its caps): the fitted cylinder's
+  // rulings every few degrees round from `at`, each clipped by the flat faces' planes; their hull is the core
+  // there, its rim a fine polygon instead of the few tangent planes of the particles beside the contact
+  // the curved particles facing the other side within a few spacings (more rings than validation looks at: a
+  // single contact's ring holds too few of them to fit)
+  const double within = 6.0 * side.meanRadius;
+  wide_.particles.assign(side.particles.begin(), side.particles.end());
+  gather(in, wide_, kFitRings);
+  curvedLocal_.clear();
+  for (std::uint32_t i = 0; i < wide_.local.size(); ++i) {
+    const Local& q = wide_.local[i];
+    if (!(q.flags & kParticleSurface) || (q.flags & (kParticleSharp | kParticleSheet)) || q.n.isZero()) continue;
+    if ((q.x - at).squaredNorm() > within * within || !(q.n.dot(towards) > kFacing)) continue;
+    bool flat = false;
+    for (const FaceCluster& c : clusters_) flat = flat || (c.flat && c.first.dot(q.n) > kFlat);
+    if (!flat) curvedLocal_.push_back(i);
+  }
+  // the axis: the direction the normals spread least along; normals that lean along it (the blend of a
+  // side and its cap in estimated normals) are left out, and the axis found again
+  Vec3 axis = Vec3::Zero();
+  for (int pass = 0; pass < 2; ++pass) {
+    Mat3 spread = Mat3::Zero();
+    int count = 0;
+    for (const std::uint32_t i : curvedLocal_) {
+      const Vec3& n = wide_.local[i].n;
+      if (pass == 1 && std::abs(n.dot(axis)) > 0.2) continue;
+      spread += n * n.transpose();
+      ++count;
+    }
+    if (count < 4) return false;
+    Eigen::SelfAdjointEigenSolver<Mat3> eig;
+    eig.computeDirect(spread);
+    if (!(eig.eigenvalues()[0] < 0.1 * eig.eigenvalues()[1])) return false;  // curved both ways: no cylinder
+    axis = eig.eigenvectors().col(0);
+  }
+  // the axis' point nearest to the normal lines, in the plane across the axis
+  Mat3 m = Mat3::Zero();
+  Vec3 rhs = Vec3::Zero(), meanPosition = Vec3::Zero(), meanNormal = Vec3::Zero();
+  int count = 0;
+  const Mat3 across = Mat3::Identity() - axis * axis.transpose();
+  for (const std::uint32_t i : curvedLocal_) {
+    const Local& q = wide_.local[i];
+    if (std::abs(q.n.dot(axis)) > 0.2) continue;
+    const Vec3 n = (across * q.n).normalized();
+    const Mat3 p = across - n * n.transpose();
+    m += p;
+    rhs += p * q.x;
+    meanPosition += q.x;
+    meanNormal += n;
+    ++count;
+  }
+  if (count < 4) return false;
+  meanPosition /= count;
+  m += axis * axis.transpose();  // (fixes the point's position along the axis at the particles' mean)
+  rhs += axis * axis.dot(meanPosition);
+  const Vec3 c = m.partialPivLu().solve(rhs);
+  if (!c.allFinite() || !((c - meanPosition).dot(meanNormal) < 0.0)) return false;
+  double radius = 0.0;
+  for (const std::uint32_t i : curvedLocal_) radius = std::max(radius, (across * (wide_.local[i].x - c)).norm());
+  Vec3 u = at - c;
+  u -= u.dot(axis) * axis;
+  if (!(radius > 0.0) || !(u.norm() > 1e-9 * radius)) return false;
+  u.normalize();
+  const Vec3 v = axis.cross(u);
+  // the flat faces' planes, each through the outermost local particle along it
+  planes_.clear();
+  for (const FaceCluster& f : clusters_) {
+    if (!f.flat) continue;
+    const Vec3 n = f.sum.normalized();
+    double d = -std::numeric_limits<double>::infinity();
+    for (const std::uint32_t i : side.hullLocal) d = std::max(d, n.dot(side.local[i].x));
+    planes_.emplace_back(n, d);
+  }
+  const double reach = 20.0 * side.meanRadius;
+  out.clear();
+  constexpr int kSteps = 20;               // each way round from `at`
+  constexpr double kStep = 3.0 * std::numbers::pi / 180.0;
+  for (int k = -kSteps; k <= kSteps; ++k) {
+    const double t = k * kStep;
+    const Vec3 base = c + radius * (std::cos(t) * u + std::sin(t) * v);
+    double lo = -reach, hi = reach;
+    for (const auto& [n, d] : planes_) {
+      const double along = n.dot(axis), room = d - n.dot(base);
+      if (std::abs(along) < 1e-9) {
+        if (room < 0.0) hi = lo - 1.0;
+      } else if (along > 0.0) {
+        hi = std::min(hi, room / along);
+      } else {
+        lo = std::max(lo, room / along);
+      }
+    }
+    if (!(lo <= hi)) continue;
+    out.push_back(base + lo * axis);
+    out.push_back(base + hi * axis);
+  }
+  return out.size() >= 4;
 }
 
 void PlaneSolver::curvedCore(bool onA, bool onB, Choice& out) const {

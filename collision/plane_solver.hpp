@@ -122,7 +122,9 @@ class PlaneSolver {
   /// Side X's core near `at` as points whose hull it is: a polytope bounded by the face planes its particles
   /// carry (each through the outermost local particle along its normal; curved particles near `at` add
   /// their tangent planes), or, where the surface there is curved without flat faces, its centres of
-  /// curvature (one point, or two for a surface curved one way). False when the particles carry no faces.
+  /// curvature (one point, or two for a surface curved one way; `curved`), or where a surface curved one way
+  /// meets flat faces, points of the fitted cylinder clipped by them (roundedCore; `curved`). False when the
+  /// particles carry no faces.
   bool localCore(const NarrowPhaseInput& in, const Side& side, const HullDistance& h, bool isA, const Vec3& towards,
                  std::vector<Vec3>& out, bool& curved, bool& exact);
   /// The points whose hull is the polytope of face planes n . x <= d near `at` (appends box planes when
@@ -140,6 +142,11 @@ class PlaneSolver {
   /// segment along its axis) nearest to the normal lines of its surface particles within reach; into `out`
   /// (one or two points). False when too few particles or directions.
   bool curvatureCentres(const Side& side, const Vec3& at, const Vec3& towards, std::vector<Vec3>& out) const;
+  /// Side X's core near `at` where a surface curved one way meets flat faces (a cylinder's rim): points on
+  /// the fitted cylinder's rulings every few degrees round from `at`, clipped by the flat faces' planes.
+  /// False when the curved particles fit no cylinder.
+  bool roundedCore(const NarrowPhaseInput& in, const Side& side, const Vec3& at, const Vec3& towards,
+                   std::vector<Vec3>& out);
   /// Follows the pair's motion to its next contacts (step 6); when that configuration has a plane, its
   /// normal, the case and true. `single`: a patch of one contact (else: parallel edges).
   bool lookAhead(const NarrowPhaseInput& in, bool single, Vec3& normal, PlaneCase& predicted, NarrowPhaseStats& stats);
@@ -154,7 +161,7 @@ class PlaneSolver {
   Side a_, b_;
   HullDistance hull_;
   std::vector<Candidate> candidates_;
-  std::vector<Vec3> centresA_, centresB_, coreA_, coreB_;
+  std::vector<Vec3> centresA_, centresB_, coreA_, coreB_, centres_;
   struct FaceCluster {
     Vec3 sum = Vec3::Zero();
     Vec3 first = Vec3::Zero();
@@ -166,9 +173,12 @@ class PlaneSolver {
     bool flat = false;   // flatCluster()
   };
   /// A flat face: several particles share the normal over an area (not along one line, as the rulings of a
-  /// cylinder do), or an edge bounds it.
+  /// cylinder do). (localCore also takes a face an edge bounds as flat, unless it is one of a fan of faces
+  /// a few degrees apart turning about one axis: the rulings of a cylinder that end at its rim.)
   [[nodiscard]] static bool flatCluster(const FaceCluster& c, double spacing);
   std::vector<FaceCluster> clusters_;
+  Side wide_;                               // roundedCore(): the side's particles with more rings
+  std::vector<std::uint32_t> curvedLocal_;  // roundedCore(): the curved particles of the fit (in wide_.local)
   std::vector<std::uint8_t> flatLocal_;  // per local particle of the side being rebuilt: on a flat face
   std::vector<Vec3> velocityA_, velocityB_;  // per local particle
   std::vector<Event> events_;

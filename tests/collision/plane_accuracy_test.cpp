@@ -47,9 +47,11 @@ struct Bounds {
 };
 
 /// The pairs and variants that do not meet the targets yet, at their measured level (2000 poses) rounded up:
-/// curved rims (capsule and cylinder ends), where the particles' faces end before the solid does; HCP edges
-/// and corners, whose outermost particles stand back from the solid's edge (an HCP plate's planes do not
-/// all separate); and estimated normals on a tilted mesh box, whose lattice steps blur its faces.
+/// a capsule's hemispheres meeting its cylinder; estimated normals on a coarse cylinder (off the radius by
+/// the lattice's steps, the rim not marked as an edge); HCP edges and corners, whose outermost particles
+/// stand back from the solid's edge (an HCP plate's planes do not all separate); estimated normals on a
+/// tilted mesh box, whose lattice steps blur its faces; and the cylinder's few planes that do not separate
+/// every particle (its angles meet the targets).
 struct Shortfall {
   const char* pair;
   const char* variant;
@@ -61,9 +63,9 @@ const Shortfall kShortfalls[] = {
     {"capsule_box", "shape", {0.5, 4.0, 2.0, 8.0, 0.01}},
     {"capsule_box", "estimated", {0.5, 6.5, 3.5, 18.0, 0.01}},
     {"capsule_box", "hcp", {0.5, 4.0, 2.0, 8.0, 0.02}},
-    {"cylinder_box", "shape", {0.5, 10.0, 3.5, 30.0, 0.025}},
+    {"cylinder_box", "shape", {0.5, 2.0, 2.0, 8.0, 0.005}},
     {"cylinder_box", "estimated", {0.5, 16.0, 10.0, 38.0, 0.04}},
-    {"cylinder_box", "hcp", {0.5, 11.0, 2.0, 18.0, 0.02}},
+    {"cylinder_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.01}},
     {"mesh_box", "shape", {0.5, 2.0, 2.0, 11.0, 0.01}},
     {"mesh_box", "estimated", {3.5, 25.0, 10.0, 35.0, 0.025}},
     {"mesh_box", "hcp", {0.5, 2.0, 2.0, 17.0, 0.025}},

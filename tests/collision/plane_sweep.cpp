@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <numbers>
 #include <limits>
@@ -181,6 +182,13 @@ SweepStats sweepPlanes(const SweepShape& sa, const SweepShape& sb, const SweepSe
     }
     const double angle = angleDeg(largest->normal, ref.normal);
     out.all.push_back(angle);
+    if (const char* dump = std::getenv("VOLPAR_SWEEP_DUMP"); dump && angle > std::atof(dump)) {
+      const Vec3 pa = qa.conjugate() * ref.pointA, nl = qa.conjugate() * largest->normal, nr = qa.conjugate() * ref.normal;
+      const Vec3 pB = qb.conjugate() * (ref.pointB - pb), nlb = qb.conjugate() * largest->normal, nrb = qb.conjugate() * ref.normal;
+      std::fprintf(stderr, "DUMP pose %d %s %.1f src %d cnt %u | A pt %.3f %.3f %.3f n %.3f %.3f %.3f ref %.3f %.3f %.3f | B pt %.3f %.3f %.3f n %.3f %.3f %.3f ref %.3f %.3f %.3f\n",
+        pose, planeCaseName(largest->planeCase), angle, static_cast<int>(largest->source), largest->count, pa.x(), pa.y(), pa.z(), nl.x(), nl.y(), nl.z(), nr.x(), nr.y(), nr.z(),
+        pB.x(), pB.y(), pB.z(), nlb.x(), nlb.y(), nlb.z(), nrb.x(), nrb.y(), nrb.z());
+    }
     out.byCase[static_cast<std::size_t>(largest->planeCase)].push_back(angle);
   }
   return out;

@@ -4,6 +4,9 @@
 // Two bodies filled from convex solids are placed in random relative poses whose rounded solids (core plus
 // particle radius, source_shape.hpp) overlap by between `minOverlap` and `maxOverlap` times the sum of the
 // particle radii, and each pose's patches are compared with FCL's closest-point direction between the cores.
+// With VOLPAR_SWEEP_DUMP=DEG in the environment, each pose whose largest patch is more than DEG degrees off is
+// printed to stderr: its case, source and contact count, and the closest points, the normal and the reference
+// in each body's own frame.
 
 #include <array>
 #include <map>
