@@ -189,7 +189,9 @@ int check(const CheckArgs& args) {
   auto built = buildScene(*desc);
   if (!built) return fail(built.error());
   World& world = built->world;
-  const std::int64_t steps = stepsFor(desc->stepCount(), desc->dt, args.steps, args.duration);
+  const auto stepCount = stepsFor(desc->stepCount(), desc->dt, args.steps, args.duration);
+  if (!stepCount) return fail(stepCount.error());
+  const std::int64_t steps = stepCount.value();
 
   reference::FclWorldReference fcl;
   const ContactFinder& finder = world.contactFinder();

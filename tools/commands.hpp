@@ -35,7 +35,11 @@ int xdmf(const std::string& path);
 
 /// Prints "volpar: error: ..." to stderr and returns exit status 1.
 int fail(const Error& e);
-/// Steps to run: the command line's --steps or --duration, else the scene's.
-std::int64_t stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration);
+/// The most steps a run may have (--steps, or --duration / dt).
+inline constexpr long long kMaxSteps = 1'000'000'000'000LL;
+
+/// Steps to run: the command line's --steps or --duration, else the scene's; an error when --duration
+/// needs more than kMaxSteps steps of `dt`.
+Result<std::int64_t> stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration);
 
 }  // namespace volpar::cli

@@ -1,5 +1,6 @@
 // volpar inspect and volpar xdmf: reading trajectories back.
 
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 
@@ -15,9 +16,18 @@ int fail(const Error& e) {
   return 1;
 }
 
-std::int64_t stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration) {
+Result<std::int64_t> stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration) {
   if (steps > 0) return steps;
-  if (duration > 0.0) return std::max<std::int64_t>(1, std::llround(duration / dt));
+  if (duration > 0.0) {
+    const double n = std::round(duration / dt);
+    if (!(n <= static_cast<double>(kMaxSteps))) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "--duration %g s is %.3g steps of dt = %g s; expected at most %lld steps", duration,
+                    n, dt, kMaxSteps);
+      return Error{"", 0, 0, buf};
+    }
+    return std::max<std::int64_t>(1, static_cast<std::int64_t>(n));
+  }
   return scene;
 }
 

@@ -34,6 +34,24 @@ void progressBar(std::int64_t done, std::int64_t total) {
   std::fflush(stderr);
 }
 
+/// An error when the trajectory would be written over one of the run's inputs (the scene, a mesh it reads,
+/// through any link) or over a folder; an empty message otherwise.
+Error refuseOverwrite(const std::string& output, const std::string& scene, const std::vector<std::string>& inputs) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path out(output);
+  if (!fs::exists(out, ec)) return {};
+  if (fs::is_directory(out, ec)) return Error{output, 0, 0, "the output is a folder; expected a file name for the trajectory"};
+  const auto same = [&](const std::string& input) {
+    std::error_code e;
+    return fs::equivalent(out, fs::path(input), e) && !e;
+  };
+  if (same(scene)) return Error{output, 0, 0, "the output is the scene file itself; refusing to write over an input"};
+  for (const std::string& in : inputs)
+    if (same(in)) return Error{output, 0, 0, "the output is " + in + ", which the scene reads; refusing to write over an input"};
+  return {};
+}
+
 }  // namespace
 
 int run(const RunArgs& args) {
@@ -45,10 +63,15 @@ int run(const RunArgs& args) {
   world.setThreads(args.threads);
 
   RunOptions options;
-  options.steps = stepsFor(desc->stepCount(), desc->dt, args.steps, args.duration);
+  const auto steps = stepsFor(desc->stepCount(), desc->dt, args.steps, args.duration);
+  if (!steps) return fail(steps.error());
+  options.steps = steps.value();
   options.every = args.every > 0 ? args.every : desc->outputEvery;
-  if (!args.noOutput)
+  if (!args.noOutput) {
     options.output = args.output.empty() ? std::filesystem::path(args.scene).stem().string() + ".h5" : args.output;
+    if (const auto refused = refuseOverwrite(options.output, args.scene, built->meshFiles); !refused.message.empty())
+      return fail(refused);
+  }
   if (isatty(STDERR_FILENO)) options.progress = progressBar;
   options.stop = &gStop;
   options.killAfterFrames = args.killAfterFrames;

@@ -2,8 +2,47 @@
 
 #include <CLI/CLI.hpp>
 
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <new>
+
 #include "engine/core/version.hpp"
 #include "tools/commands.hpp"
+
+namespace {
+
+/// A whole number from `lo` to `hi` written in decimal digits (no sign, exponent or fraction), or the reason not.
+CLI::Validator wholeNumber(long long lo, long long hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        long long v = 0;
+        const char* end = text.data() + text.size();
+        const auto [ptr, ec] = std::from_chars(text.data(), end, v);
+        if (ec == std::errc::result_out_of_range || (ec == std::errc() && ptr == end && (v < lo || v > hi)))
+          return "expected a whole number from " + std::to_string(lo) + " to " + std::to_string(hi) + ", got " + text;
+        if (ec != std::errc() || ptr != end) return "expected a whole number, got " + text;
+        return {};
+      },
+      "INT in [" + std::to_string(lo) + " - " + std::to_string(hi) + "]");
+}
+
+/// A finite number above zero.
+CLI::Validator positiveFinite() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        double v = 0.0;
+        const char* end = text.data() + text.size();
+        const auto [ptr, ec] = std::from_chars(text.data(), end, v);
+        if (ec != std::errc() || ptr != end) return "expected a number, got " + text;
+        if (!std::isfinite(v) || !(v > 0.0)) return "expected a finite number above 0, got " + text;
+        return {};
+      },
+      "FLOAT > 0");
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace volpar::cli;
@@ -17,28 +56,29 @@ int main(int argc, char** argv) {
   auto* output =
       runCmd->add_option("-o,--output", run.output, "Trajectory file (default: <scene name>.h5 in the current folder)");
   runCmd->add_flag("--no-output", run.noOutput, "Do not write a trajectory")->excludes(output);
-  auto* steps = runCmd->add_option("--steps", run.steps, "Number of steps (overrides the scene)")->check(CLI::PositiveNumber);
+  auto* steps = runCmd->add_option("--steps", run.steps, "Number of steps (overrides the scene)")->check(wholeNumber(1, kMaxSteps));
   runCmd->add_option("--duration", run.duration, "Simulated time [s] (overrides the scene)")
-      ->check(CLI::PositiveNumber)
+      ->check(positiveFinite())
       ->excludes(steps);
-  runCmd->add_option("--every", run.every, "Write a frame every K steps (overrides the scene)")->check(CLI::PositiveNumber);
+  runCmd->add_option("--every", run.every, "Write a frame every K steps (overrides the scene)")
+      ->check(wholeNumber(1, 2147483647));
   runCmd->add_flag("--json", run.json, "Print one JSON object with the summary on stdout");
   runCmd->add_option("--threads", run.threads, "Worker threads for the step (default 1; the results are the same)")
-      ->check(CLI::Range(1, 256));
+      ->check(wholeNumber(1, 256));
   // testing aid, not shown in --help
-  runCmd->add_option("--kill-after-frames", run.killAfterFrames)->group("");
+  runCmd->add_option("--kill-after-frames", run.killAfterFrames)->group("")->check(wholeNumber(0, kMaxSteps));
 
   CheckArgs check;
   CLI::App* checkCmd =
       app.add_subcommand("check", "Run a scene and cross-check every step's collision results against FCL");
   checkCmd->add_option("scene", check.scene, "Scene file (YAML)")->required()->check(CLI::ExistingFile);
   auto* checkSteps =
-      checkCmd->add_option("--steps", check.steps, "Number of steps (overrides the scene)")->check(CLI::PositiveNumber);
+      checkCmd->add_option("--steps", check.steps, "Number of steps (overrides the scene)")->check(wholeNumber(1, kMaxSteps));
   checkCmd->add_option("--duration", check.duration, "Simulated time [s] (overrides the scene)")
-      ->check(CLI::PositiveNumber)
+      ->check(positiveFinite())
       ->excludes(checkSteps);
   checkCmd->add_option("--details", check.details, "How many mismatches to describe (default 10)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(wholeNumber(0, 1000000));
   checkCmd->add_flag("--json", check.json, "Print one JSON object with the report on stdout");
 
   std::string inspectPath;
@@ -51,10 +91,31 @@ int main(int argc, char** argv) {
   CLI::App* xdmfCmd = app.add_subcommand("xdmf", "(Re)write the ParaView XDMF sidecar of a trajectory");
   xdmfCmd->add_option("file", xdmfPath, "Trajectory (.h5)")->required()->check(CLI::ExistingFile);
 
-  CLI11_PARSE(app, argc, argv);
-  if (runCmd->parsed()) return volpar::cli::run(run);
-  if (checkCmd->parsed()) return volpar::cli::check(check);
-  if (inspectCmd->parsed()) return inspect(inspectPath, inspectJson);
-  if (xdmfCmd->parsed()) return xdmf(xdmfPath);
+  // every command-line error exits with status 1 (help and version with 0)
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "volpar: error: %s\nRun with --help for more information.\n", e.what());
+    return 1;
+  }
+  // what the commands do not catch themselves: a clear message and status 1, never an abort
+  try {
+    if (runCmd->parsed()) return volpar::cli::run(run);
+    if (checkCmd->parsed()) return volpar::cli::check(check);
+    if (inspectCmd->parsed()) return inspect(inspectPath, inspectJson);
+    if (xdmfCmd->parsed()) return xdmf(xdmfPath);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "volpar: error: out of memory\n");
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "volpar: error: %s\n", e.what());
+    return 1;
+  }
   return 0;
 }

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "tests/support/test_support.hpp"
 
@@ -65,7 +66,7 @@ TEST(Cli, ThreadsAreReportedAndOutOfRangeCountsRejected) {
   const std::string out = writeFile(dir + "/keep.h5", "precious");
   for (const char* bad : {"0", "-1", "1000", "two"}) {
     const auto b = test::runCommand(test::volparBinary() + " run " + scene + " -o " + out + " --threads " + bad);
-    EXPECT_NE(b.exitCode, 0) << bad;
+    EXPECT_EQ(b.exitCode, 1) << bad;
     EXPECT_NE(b.output.find("--threads"), std::string::npos) << bad << "\n" << b.output;
   }
   std::ifstream in(out);
@@ -89,7 +90,7 @@ TEST(Cli, BadSceneFailsWithLocationAndKeepsExistingOutput) {
 
 TEST(Cli, MissingSceneAndHelp) {
   const auto missing = test::runCommand(test::volparBinary() + " run /nonexistent.yaml");
-  EXPECT_NE(missing.exitCode, 0);
+  EXPECT_EQ(missing.exitCode, 1);
   EXPECT_NE(missing.output.find("/nonexistent.yaml"), std::string::npos) << missing.output;
   for (const char* cmd : {" --help", " run --help", " inspect --help", " xdmf --help"}) {
     const auto help = test::runCommand(test::volparBinary() + cmd);
@@ -104,6 +105,75 @@ TEST(Cli, InspectRejectsFilesThatAreNotTrajectories) {
   const auto r = test::runCommand(test::volparBinary() + " inspect " + notH5);
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_NE(r.output.find("not an HDF5 file"), std::string::npos) << r.output;
+}
+
+// Every option is checked for its type and range (no overflow taken for a huge count, no NaN or infinity, no
+// duration that rounds to one step or to more steps than a run may have); every command-line error exits
+// with status 1 and names the option and what it expected.
+TEST(Cli, OptionErrorsNameTheOptionAndExitWithOne) {
+  const std::string dir = test::tempDir();
+  const std::string scene = writeFile(dir + "/fall.yaml", kFall);
+  struct Case {
+    const char* args;
+    const char* says;
+  };
+  const Case cases[] = {
+      {"--steps 99999999999999999999", "--steps: expected a whole number from 1 to 1000000000000"},
+      {"--steps 0", "--steps: expected a whole number from 1"},
+      {"--steps -3", "--steps: expected a whole number from 1"},
+      {"--steps 1e3", "--steps: expected a whole number, got 1e3"},
+      {"--steps 2.5", "--steps: expected a whole number, got 2.5"},
+      {"--duration nan", "--duration: expected a finite number above 0, got nan"},
+      {"--duration inf", "--duration: expected a finite number above 0, got inf"},
+      {"--duration -1", "--duration: expected a finite number above 0, got -1"},
+      {"--duration 0", "--duration: expected a finite number above 0, got 0"},
+      {"--duration 1e300", "expected at most 1000000000000 steps"},
+      {"--every 0", "--every: expected a whole number from 1"},
+      {"--every 4294967296", "--every: expected a whole number from 1 to 2147483647"},
+      {"--threads 1.5", "--threads: expected a whole number"},
+      {"--bogus", "--bogus"},
+  };
+  for (const Case& c : cases) {
+    const auto r = test::runCommand(test::volparBinary() + " run " + scene + " --no-output " + c.args);
+    EXPECT_EQ(r.exitCode, 1) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.says), std::string::npos) << c.args << "\n" << r.output;
+  }
+  const auto check = test::runCommand(test::volparBinary() + " check " + scene + " --duration nan");
+  EXPECT_EQ(check.exitCode, 1) << check.output;
+  const auto details = test::runCommand(test::volparBinary() + " check " + scene + " --details -1");
+  EXPECT_EQ(details.exitCode, 1) << details.output;
+  const auto none = test::runCommand(test::volparBinary());
+  EXPECT_EQ(none.exitCode, 1) << none.output;
+  EXPECT_NE(none.output.find("subcommand"), std::string::npos) << none.output;
+  const auto unknown = test::runCommand(test::volparBinary() + " frobnicate");
+  EXPECT_EQ(unknown.exitCode, 1) << unknown.output;
+}
+
+// The trajectory is never written over the run's inputs: the scene (by name, by another path to it or by a
+// link) or a mesh it reads; nor over a folder. Each is refused before the run, with status 1.
+TEST(Cli, OutputOverAnInputIsRefused) {
+  const std::string dir = test::tempDir();
+  std::filesystem::create_directories(dir + "/meshes");
+  std::filesystem::copy_file(test::sourcePath("scenes/meshes/l_shape.obj"), dir + "/meshes/l.obj");
+  const std::string scene = writeFile(dir + "/s.yaml", std::string(kFall) +
+                                                           "  - shape: {mesh: {file: meshes/l.obj}}\n"
+                                                           "    fill: {radius: 0.1}\n    position: [5, 0, 0]\n");
+  std::filesystem::create_symlink(dir + "/s.yaml", dir + "/link.yaml");
+  const auto original = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string sceneText = original(scene), meshText = original(dir + "/meshes/l.obj");
+  for (const std::string& out : {scene, dir + "/./s.yaml", dir + "/link.yaml", dir + "/meshes/l.obj", dir + "/meshes"}) {
+    const auto r = test::runCommand(test::volparBinary() + " run " + scene + " --steps 2 -o " + out);
+    EXPECT_EQ(r.exitCode, 1) << out << "\n" << r.output;
+    const bool named = r.output.find("refusing to write over an input") != std::string::npos ||
+                       r.output.find("the output is a folder") != std::string::npos;
+    EXPECT_TRUE(named) << out << "\n" << r.output;
+  }
+  EXPECT_EQ(original(scene), sceneText);
+  EXPECT_EQ(original(dir + "/meshes/l.obj"), meshText);
+  EXPECT_TRUE(std::filesystem::is_directory(dir + "/meshes"));
 }
 
 }  // namespace
