@@ -2,6 +2,9 @@
 
 #include <hdf5.h>
 
+#include <cmath>
+#include <filesystem>
+
 namespace volpar {
 
 namespace {
@@ -30,75 +33,194 @@ class Handle {
 std::vector<hsize_t> dims(hid_t ds) {
   Handle space(H5Dget_space(ds), H5Sclose, "dataspace");
   const int rank = H5Sget_simple_extent_ndims(space.get());
-  std::vector<hsize_t> d(static_cast<std::size_t>(std::max(rank, 0)));
-  if (rank > 0) H5Sget_simple_extent_dims(space.get(), d.data(), nullptr);
+  if (rank < 0 || rank > 8) throw ReadFailure{"unreadable dataspace"};
+  std::vector<hsize_t> d(static_cast<std::size_t>(rank));
+  if (rank > 0 && H5Sget_simple_extent_dims(space.get(), d.data(), nullptr) < 0) throw ReadFailure{"unreadable dataspace"};
+  return d;
+}
+
+std::string shapeText(const std::vector<hsize_t>& d) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < d.size(); ++i) out += (i ? ", " : "") + std::to_string(d[i]);
+  return out + "]";
+}
+
+/// What a dataset must be before it is read: its class, rank and the sizes of its trailing dimensions.
+struct Expect {
+  H5T_class_t typeClass;  // H5T_INTEGER or H5T_FLOAT (either is read as numbers), H5T_STRING
+  int rank;
+  std::vector<hsize_t> trailing;  // sizes of the last dimensions (e.g. {3} for [T, N, 3])
+  const char* what;               // for messages: "one integer per frame", ...
+};
+
+/// Opens dataset `name` and checks it against `e`: numbers where numbers are expected, strings where strings,
+/// the rank and trailing sizes, and a total size the file can hold (`limit` bytes).
+std::vector<hsize_t> checked(hid_t file, const std::string& name, const Expect& e, std::uint64_t limit, hid_t& out) {
+  if (H5Lexists(file, name.c_str(), H5P_DEFAULT) <= 0) throw ReadFailure{"missing dataset /" + name + " (" + e.what + ")"};
+  {
+    Handle object(H5Oopen(file, name.c_str(), H5P_DEFAULT), H5Oclose, "cannot open /" + name);
+    if (H5Iget_type(object.get()) != H5I_DATASET) throw ReadFailure{"/" + name + " is not a dataset; expected " + e.what};
+  }
+  out = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+  if (out < 0) throw ReadFailure{"cannot open dataset /" + name};
+  Handle type(H5Dget_type(out), H5Tclose, "datatype of /" + name);
+  const H5T_class_t c = H5Tget_class(type.get());
+  const bool numeric = c == H5T_INTEGER || c == H5T_FLOAT;
+  if (e.typeClass == H5T_STRING ? c != H5T_STRING : !numeric)
+    throw ReadFailure{"/" + name + " holds " + (c == H5T_STRING ? "strings" : c == H5T_COMPOUND ? "compound records" : "values of another type") +
+                      "; expected " + e.what};
+  const std::vector<hsize_t> d = dims(out);
+  if (static_cast<int>(d.size()) != e.rank)
+    throw ReadFailure{"/" + name + " has shape " + shapeText(d) + "; expected " + e.what};
+  for (std::size_t k = 0; k < e.trailing.size(); ++k)
+    if (d[d.size() - e.trailing.size() + k] != e.trailing[k])
+      throw ReadFailure{"/" + name + " has shape " + shapeText(d) + "; expected " + e.what};
+  // the elements it claims must fit in what the file can hold (compression gives at most about 1000 : 1)
+  long double bytes = 8.0L;
+  for (const hsize_t k : d) bytes *= static_cast<long double>(k);
+  if (bytes > static_cast<long double>(limit))
+    throw ReadFailure{"/" + name + " claims shape " + shapeText(d) + ", more than the file can hold; expected " + e.what};
   return d;
 }
 
 template <class T>
-std::vector<T> readAll(hid_t file, const std::string& name, hid_t memType) {
-  Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose, "missing dataset " + name);
+std::vector<T> readAll(hid_t file, const std::string& name, hid_t memType, const Expect& e, std::uint64_t limit) {
+  hid_t id = H5I_INVALID_HID;
+  std::vector<hsize_t> d;
+  try {
+    d = checked(file, name, e, limit, id);
+  } catch (...) {
+    if (id >= 0) H5Dclose(id);
+    throw;
+  }
+  Handle ds(id, H5Dclose, "dataset /" + name);
   hsize_t n = 1;
-  for (const hsize_t d : dims(ds.get())) n *= d;
-  std::vector<T> out(n);
+  for (const hsize_t k : d) n *= k;
+  std::vector<T> out(static_cast<std::size_t>(n));
   if (n > 0 && H5Dread(ds.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
-    throw ReadFailure{"cannot read " + name};
+    throw ReadFailure{"cannot read /" + name + " as " + e.what};
   return out;
 }
 
 /// Row `row` of a [T, N, k] dataset as N*k doubles.
-std::vector<double> readRow(hid_t file, const std::string& name, std::size_t row) {
-  Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose, "missing dataset " + name);
-  std::vector<hsize_t> d = dims(ds.get());
-  if (d.empty() || row >= d[0]) throw ReadFailure{"frame " + std::to_string(row) + " out of range in " + name};
+std::vector<double> readRow(hid_t file, const std::string& name, std::size_t row, const Expect& e, std::uint64_t limit) {
+  hid_t id = H5I_INVALID_HID;
+  std::vector<hsize_t> d;
+  try {
+    d = checked(file, name, e, limit, id);
+  } catch (...) {
+    if (id >= 0) H5Dclose(id);
+    throw;
+  }
+  Handle ds(id, H5Dclose, "dataset /" + name);
+  if (row >= d[0]) throw ReadFailure{"frame " + std::to_string(row) + " out of range in /" + name + " (" + std::to_string(d[0]) + " frames)"};
   std::vector<hsize_t> start(d.size(), 0), count = d;
   start[0] = row;
   count[0] = 1;
   Handle fileSpace(H5Dget_space(ds.get()), H5Sclose, "dataspace");
-  H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr);
+  if (H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr) < 0)
+    throw ReadFailure{"cannot select frame " + std::to_string(row) + " of /" + name};
   Handle memSpace(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr), H5Sclose, "dataspace");
   hsize_t n = 1;
   for (const hsize_t c : count) n *= c;
-  std::vector<double> out(n);
+  std::vector<double> out(static_cast<std::size_t>(n));
   if (n > 0 && H5Dread(ds.get(), H5T_NATIVE_DOUBLE, memSpace.get(), fileSpace.get(), H5P_DEFAULT, out.data()) < 0)
-    throw ReadFailure{"cannot read " + name};
+    throw ReadFailure{"cannot read /" + name};
   return out;
 }
 
-std::string readStringAttr(hid_t file, const std::string& object, const std::string& name) {
+/// A string attribute: one string (a scalar, or an array of one), fixed or variable length.
+std::string readStringAttr(hid_t file, const std::string& object, const std::string& name, std::uint64_t limit) {
+  const std::string where = "/" + object + "@" + name;
+  if (H5Lexists(file, object.c_str(), H5P_DEFAULT) <= 0 || H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) <= 0)
+    throw ReadFailure{"missing attribute " + where + " (a string)"};
   Handle attr(H5Aopen_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
-              "missing attribute " + object + "@" + name);
+              "cannot open attribute " + where);
   Handle type(H5Aget_type(attr.get()), H5Tclose, "attribute type");
+  if (H5Tget_class(type.get()) != H5T_STRING) throw ReadFailure{where + " is not a string; expected a string"};
+  Handle space(H5Aget_space(attr.get()), H5Sclose, "attribute dataspace");
+  const hssize_t count = H5Sget_simple_extent_npoints(space.get());
+  if (count != 1) throw ReadFailure{where + " holds " + std::to_string(count) + " strings; expected one"};
   if (H5Tis_variable_str(type.get()) > 0) {
     char* s = nullptr;
     Handle mem(H5Tcopy(H5T_C_S1), H5Tclose, "string type");
     H5Tset_size(mem.get(), H5T_VARIABLE);
     H5Tset_cset(mem.get(), H5Tget_cset(type.get()));
-    if (H5Aread(attr.get(), mem.get(), &s) < 0) throw ReadFailure{"cannot read " + name};
+    if (H5Aread(attr.get(), mem.get(), &s) < 0) throw ReadFailure{"cannot read " + where};
     std::string out = s ? s : "";
     H5free_memory(s);
     return out;
   }
   const std::size_t size = H5Tget_size(type.get());
+  if (size == 0 || size > limit) throw ReadFailure{where + " is a string of " + std::to_string(size) + " bytes; expected a short string"};
   std::string out(size, '\0');
-  if (H5Aread(attr.get(), type.get(), out.data()) < 0) throw ReadFailure{"cannot read " + name};
+  if (H5Aread(attr.get(), type.get(), out.data()) < 0) throw ReadFailure{"cannot read " + where};
   out.erase(out.find_last_not_of('\0') + 1);
   return out;
 }
 
-std::vector<std::string> readStrings(hid_t file, const std::string& name, bool scalar) {
-  Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose, "missing dataset " + name);
-  const std::size_t n = scalar ? 1 : static_cast<std::size_t>(dims(ds.get()).at(0));
-  std::vector<char*> ptrs(n, nullptr);
-  Handle mem(H5Tcopy(H5T_C_S1), H5Tclose, "string type");
-  H5Tset_size(mem.get(), H5T_VARIABLE);
-  H5Tset_cset(mem.get(), H5T_CSET_UTF8);
-  if (n > 0 && H5Dread(ds.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
-    throw ReadFailure{"cannot read " + name};
+/// A string dataset: `scalar`, one string (a scalar or an array of one); else a list of them.
+std::vector<std::string> readStrings(hid_t file, const std::string& name, bool scalar, std::uint64_t limit) {
+  const Expect e{H5T_STRING, 1, {}, scalar ? "one string" : "a list of strings"};
+  hid_t id = H5I_INVALID_HID;
+  std::vector<hsize_t> d;
+  try {
+    if (scalar) {
+      // a scalar string: rank 0, or rank 1 of one element
+      Expect e0 = e;
+      e0.rank = 0;
+      if (H5Lexists(file, name.c_str(), H5P_DEFAULT) > 0) {
+        const hid_t probe = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+        if (probe >= 0) {
+          std::vector<hsize_t> pd;
+          try {
+            pd = dims(probe);
+          } catch (...) {
+            H5Dclose(probe);
+            throw;
+          }
+          H5Dclose(probe);
+          if (pd.empty()) e0.rank = 0;
+          else e0.rank = 1;
+          if (pd.size() == 1 && pd[0] != 1) throw ReadFailure{"/" + name + " holds " + std::to_string(pd[0]) + " strings; expected one"};
+        }
+      }
+      d = checked(file, name, e0, limit, id);
+    } else {
+      d = checked(file, name, e, limit, id);
+    }
+  } catch (...) {
+    if (id >= 0) H5Dclose(id);
+    throw;
+  }
+  Handle ds(id, H5Dclose, "dataset /" + name);
+  const std::size_t n = d.empty() ? 1 : static_cast<std::size_t>(d[0]);
+  Handle type(H5Dget_type(ds.get()), H5Tclose, "datatype of /" + name);
   std::vector<std::string> out;
-  for (char* p : ptrs) {
-    out.emplace_back(p ? p : "");
-    H5free_memory(p);
+  if (H5Tis_variable_str(type.get()) > 0) {
+    std::vector<char*> ptrs(n, nullptr);
+    Handle mem(H5Tcopy(H5T_C_S1), H5Tclose, "string type");
+    H5Tset_size(mem.get(), H5T_VARIABLE);
+    H5Tset_cset(mem.get(), H5T_CSET_UTF8);
+    if (n > 0 && H5Dread(ds.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
+      throw ReadFailure{"cannot read /" + name + " as " + e.what};
+    for (char* p : ptrs) {
+      out.emplace_back(p ? p : "");
+      H5free_memory(p);
+    }
+    return out;
+  }
+  // fixed-length strings
+  const std::size_t size = H5Tget_size(type.get());
+  if (size == 0 || static_cast<long double>(size) * static_cast<long double>(n) > static_cast<long double>(limit))
+    throw ReadFailure{"/" + name + " holds strings larger than the file; expected " + e.what};
+  std::string raw(size * n, '\0');
+  if (n > 0 && H5Dread(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, raw.data()) < 0)
+    throw ReadFailure{"cannot read /" + name + " as " + e.what};
+  for (std::size_t i = 0; i < n; ++i) {
+    std::string one = raw.substr(i * size, size);
+    one.erase(one.find_last_not_of('\0') + 1);
+    out.push_back(std::move(one));
   }
   return out;
 }
@@ -108,6 +230,7 @@ std::vector<std::string> readStrings(hid_t file, const std::string& name, bool s
 struct H5mdReader::Impl {
   hid_t file = H5I_INVALID_HID;
   std::string path;
+  std::uint64_t limit = 0;  ///< the most bytes a dataset of this file can hold (compression included)
 };
 
 H5mdReader::H5mdReader(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -121,6 +244,11 @@ Result<std::unique_ptr<H5mdReader>> H5mdReader::open(const std::string& path) {
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   if (H5Fis_hdf5(path.c_str()) <= 0) return Error{path, 0, 0, "not an HDF5 file (or cannot be opened)"};
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) return Error{path, 0, 0, "cannot read the file's size: " + ec.message()};
+  // deflate packs at most about 1032 : 1; room for that and for small files
+  impl->limit = static_cast<std::uint64_t>(size) * 1100u + (std::uint64_t{1} << 20);
   impl->file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (impl->file < 0) return Error{path, 0, 0, "cannot open HDF5 file"};
   if (H5Lexists(impl->file, "h5md", H5P_DEFAULT) <= 0) {
@@ -132,24 +260,63 @@ Result<std::unique_ptr<H5mdReader>> H5mdReader::open(const std::string& path) {
 
 Result<TrajectorySummary> H5mdReader::summary() const {
   const hid_t f = impl_->file;
+  const std::uint64_t limit = impl_->limit;
   TrajectorySummary s;
+  const Expect perFrame{H5T_FLOAT, 1, {}, "one number per frame, [T]"};
+  const Expect stepPerFrame{H5T_INTEGER, 1, {}, "one step number per frame, [T]"};
   try {
-    s.creatorName = readStringAttr(f, "h5md/creator", "name");
-    s.creatorVersion = readStringAttr(f, "h5md/creator", "version");
-    s.sceneName = readStringAttr(f, "parameters", "scene_name");
-    s.sceneText = readStrings(f, "parameters/scene", true).at(0);
-    s.step = readAll<std::int64_t>(f, "particles/all/position/step", H5T_NATIVE_INT64);
-    s.time = readAll<double>(f, "particles/all/position/time", H5T_NATIVE_DOUBLE);
+    s.creatorName = readStringAttr(f, "h5md/creator", "name", limit);
+    s.creatorVersion = readStringAttr(f, "h5md/creator", "version", limit);
+    s.sceneName = readStringAttr(f, "parameters", "scene_name", limit);
+    s.sceneText = readStrings(f, "parameters/scene", true, limit).at(0);
+    s.step = readAll<std::int64_t>(f, "particles/all/position/step", H5T_NATIVE_INT64, stepPerFrame, limit);
+    s.time = readAll<double>(f, "particles/all/position/time", H5T_NATIVE_DOUBLE, perFrame, limit);
     s.frames = s.step.size();
-    s.particles = readAll<double>(f, "particles/all/radius", H5T_NATIVE_DOUBLE).size();
-    s.bodyNames = readStrings(f, "particles/bodies/name", false);
+    s.particles = readAll<double>(f, "particles/all/radius", H5T_NATIVE_DOUBLE, {H5T_FLOAT, 1, {}, "one radius per particle, [P]"}, limit).size();
+    s.bodyNames = readStrings(f, "particles/bodies/name", false, limit);
     s.bodies = s.bodyNames.size();
-    s.kinetic = readAll<double>(f, "observables/kinetic_energy/value", H5T_NATIVE_DOUBLE);
-    s.potential = readAll<double>(f, "observables/potential_energy/value", H5T_NATIVE_DOUBLE);
-    s.total = readAll<double>(f, "observables/total_energy/value", H5T_NATIVE_DOUBLE);
+    s.kinetic = readAll<double>(f, "observables/kinetic_energy/value", H5T_NATIVE_DOUBLE, perFrame, limit);
+    s.potential = readAll<double>(f, "observables/potential_energy/value", H5T_NATIVE_DOUBLE, perFrame, limit);
+    s.total = readAll<double>(f, "observables/total_energy/value", H5T_NATIVE_DOUBLE, perFrame, limit);
     if (H5Lexists(f, "patches", H5P_DEFAULT) > 0) {
-      s.patchOffset = readAll<std::int64_t>(f, "patches/offset", H5T_NATIVE_INT64);
-      s.patchCount = readAll<std::int64_t>(f, "patches/count", H5T_NATIVE_INT64);
+      const Expect rows{H5T_INTEGER, 1, {}, "one row number per frame, [T]"};
+      s.patchOffset = readAll<std::int64_t>(f, "patches/offset", H5T_NATIVE_INT64, rows, limit);
+      s.patchCount = readAll<std::int64_t>(f, "patches/count", H5T_NATIVE_INT64, rows, limit);
+    }
+    // the per-frame records agree with each other and with the frames of the positions
+    const auto frames = [&](const std::string& name, std::size_t n) {
+      if (n != s.frames)
+        throw ReadFailure{"/" + name + " has " + std::to_string(n) + " entries but /particles/all/position/step has " +
+                          std::to_string(s.frames) + "; expected one per frame"};
+    };
+    frames("particles/all/position/time", s.time.size());
+    frames("observables/kinetic_energy/value", s.kinetic.size());
+    frames("observables/potential_energy/value", s.potential.size());
+    frames("observables/total_energy/value", s.total.size());
+    if (!s.patchOffset.empty() || !s.patchCount.empty()) {
+      frames("patches/offset", s.patchOffset.size());
+      frames("patches/count", s.patchCount.size());
+      for (std::size_t i = 0; i < s.frames; ++i)
+        if (s.patchOffset[i] < 0 || s.patchCount[i] < 0 ||
+            (i > 0 && s.patchOffset[i] != s.patchOffset[i - 1] + s.patchCount[i - 1]))
+          throw ReadFailure{"/patches/offset and /patches/count disagree at frame " + std::to_string(i) +
+                            "; expected consecutive row ranges"};
+    }
+    const Expect positions{H5T_FLOAT, 3, {static_cast<hsize_t>(s.particles), 3}, "positions [T, P, 3]"};
+    hid_t id = H5I_INVALID_HID;
+    const std::vector<hsize_t> d = checked(f, "particles/all/position/value", positions, limit, id);
+    if (id >= 0) H5Dclose(id);
+    if (d[0] != s.frames)
+      throw ReadFailure{"/particles/all/position/value has " + std::to_string(d[0]) + " frames but /particles/all/position/step has " +
+                        std::to_string(s.frames) + "; expected one step number per frame"};
+    // what a trajectory must not hold: no frame, times that are not numbers or that go back
+    if (s.frames == 0) throw ReadFailure{"the trajectory has no frames; expected at least the first (step 0)"};
+    for (std::size_t i = 0; i < s.frames; ++i) {
+      if (!std::isfinite(s.time[i]))
+        throw ReadFailure{"/particles/all/position/time[" + std::to_string(i) + "] is not a finite number; expected a time in seconds"};
+      if (i > 0 && (s.time[i] < s.time[i - 1] || s.step[i] <= s.step[i - 1]))
+        throw ReadFailure{"frame " + std::to_string(i) + " (step " + std::to_string(s.step[i]) +
+                          ") does not come after the frame before it; expected increasing steps and times"};
     }
   } catch (const ReadFailure& e) {
     return Error{impl_->path, 0, 0, e.what};
@@ -159,9 +326,10 @@ Result<TrajectorySummary> H5mdReader::summary() const {
 
 namespace {
 
-Result<std::vector<Vec3>> vec3Row(hid_t file, const std::string& path, const std::string& name, std::size_t frame) {
+Result<std::vector<Vec3>> vec3Row(hid_t file, const std::string& path, const std::string& name, std::size_t frame,
+                                  std::uint64_t limit) {
   try {
-    const std::vector<double> raw = readRow(file, name, frame);
+    const std::vector<double> raw = readRow(file, name, frame, {H5T_FLOAT, 3, {3}, "vectors [T, N, 3]"}, limit);
     std::vector<Vec3> out(raw.size() / 3);
     for (std::size_t i = 0; i < out.size(); ++i) out[i] = Vec3(raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]);
     return out;
@@ -173,16 +341,17 @@ Result<std::vector<Vec3>> vec3Row(hid_t file, const std::string& path, const std
 }  // namespace
 
 Result<std::vector<Vec3>> H5mdReader::positions(std::size_t frame) const {
-  return vec3Row(impl_->file, impl_->path, "particles/all/position/value", frame);
+  return vec3Row(impl_->file, impl_->path, "particles/all/position/value", frame, impl_->limit);
 }
 
 Result<std::vector<Vec3>> H5mdReader::bodyPositions(std::size_t frame) const {
-  return vec3Row(impl_->file, impl_->path, "particles/bodies/position/value", frame);
+  return vec3Row(impl_->file, impl_->path, "particles/bodies/position/value", frame, impl_->limit);
 }
 
 Result<std::vector<Quat>> H5mdReader::bodyOrientations(std::size_t frame) const {
   try {
-    const std::vector<double> raw = readRow(impl_->file, "particles/bodies/orientation/value", frame);
+    const std::vector<double> raw =
+        readRow(impl_->file, "particles/bodies/orientation/value", frame, {H5T_FLOAT, 3, {4}, "quaternions [T, B, 4]"}, impl_->limit);
     std::vector<Quat> out(raw.size() / 4);
     for (std::size_t i = 0; i < out.size(); ++i) out[i] = Quat(raw[4 * i], raw[4 * i + 1], raw[4 * i + 2], raw[4 * i + 3]);
     return out;

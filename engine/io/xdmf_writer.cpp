@@ -61,6 +61,22 @@ void writePatchGrids(std::ostream& x, const XdmfFrames& f, const std::string& h5
 
 }  // namespace
 
+std::string xmlEscaped(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char c : text) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      case '\'': out += "&apos;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
 std::string sidecarPath(const std::string& h5Path) {
   std::filesystem::path p(h5Path);
   if (p.extension() == ".h5" || p.extension() == ".hdf5" || p.extension() == ".h5md") p.replace_extension();
@@ -71,7 +87,7 @@ Status writeXdmf(const XdmfFrames& f) {
   const std::string out = sidecarPath(f.h5Path);
   const std::string tmp = out + ".tmp";
   // the HDF5 path inside the sidecar is relative to the sidecar
-  const std::string h5 = std::filesystem::path(f.h5Path).filename().string();
+  const std::string h5 = xmlEscaped(std::filesystem::path(f.h5Path).filename().string());
   const std::size_t t = f.time.size();
   const std::size_t p = f.particles;
   {
@@ -113,7 +129,12 @@ Status writeXdmf(const XdmfFrames& f) {
     x << " </Grid>\n";
     if (f.patchOffset.size() == t && f.patchCount.size() == t) writePatchGrids(x, f, h5);
     x << "</Domain>\n</Xdmf>\n";
-    if (!x) return Error{tmp, 0, 0, "failed writing the XDMF sidecar"};
+    x.close();  // (the last of the text reaches the disk here: a full disk shows now, not later)
+    if (!x) {
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      return Error{tmp, 0, 0, "failed writing the XDMF sidecar (disk full?); the previous sidecar, if any, is kept"};
+    }
   }
   std::error_code ec;
   std::filesystem::rename(tmp, out, ec);

@@ -25,6 +25,8 @@ struct XdmfFrames {
   std::vector<std::int64_t> patchCount;
 };
 
+/// `text` with & < > " and ' written as XML entities (for names inside attributes and elements).
+[[nodiscard]] std::string xmlEscaped(const std::string& text);
 /// `<trajectory without .h5>.xdmf2`
 [[nodiscard]] std::string sidecarPath(const std::string& h5Path);
 

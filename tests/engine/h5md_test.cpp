@@ -324,6 +324,22 @@ TEST(H5md, PatchRecordsOfEveryFrameReadBackBitForBit) {
   }
 }
 
+// A trajectory whose name holds XML's special characters gets a sidecar that is still well-formed XML: the
+// name is written with entities wherever the sidecar refers to the file.
+TEST(H5md, SidecarEscapesTheFileName) {
+  XdmfFrames frames;
+  frames.h5Path = test::tempDir() + "/a\"&<>'b.h5";
+  frames.particles = 2;
+  frames.time = {0.0, 0.5};
+  frames.step = {0, 50};
+  ASSERT_TRUE(writeXdmf(frames).ok());
+  std::ifstream in(sidecarPath(frames.h5Path));
+  const std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(xml.find(">a&quot;&amp;&lt;&gt;&apos;b.h5:/particles/all/position/value<"), std::string::npos) << xml;
+  EXPECT_EQ(xml.find("a\"&<>'b"), std::string::npos);
+  EXPECT_EQ(xmlEscaped("x<y&z"), "x&lt;y&amp;z");
+}
+
 TEST(H5md, SidecarSkipsThePatchGridOfFramesWithoutPatches) {
   XdmfFrames frames;
   frames.h5Path = test::tempDir() + "/run.h5";

@@ -1,0 +1,147 @@
+#!/usr/bin/python3
+"""Malformed trajectories made with h5py from a good one: `volpar inspect` and `volpar xdmf` must refuse each
+with exit status 1 and a message naming the object at fault (no signal, no sanitizer report, no hang), and
+leave the file untouched.
+
+usage: hostile_trajectories.py VOLPAR GOOD.h5 WORKDIR
+"""
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+
+def variants():
+    """(name, what the message must name, function that breaks the copy opened read-write)."""
+    v = []
+
+    def attr(obj, name, value, **kw):
+        def f(h):
+            del h[obj].attrs[name]
+            h[obj].attrs.create(name, value, **kw)
+        return f
+
+    v.append(("creator name an int", "h5md/creator@name", attr("h5md/creator", "name", 7)))
+    v.append(("creator name an array of strings", "h5md/creator@name",
+              attr("h5md/creator", "name", np.array([b"a", b"b", b"c"]))))
+    v.append(("creator version a float array", "h5md/creator@version", attr("h5md/creator", "version", np.zeros(4))))
+    compound = np.zeros(1, dtype=[("a", "i4"), ("b", "f8")])
+    v.append(("scene name a compound", "parameters@scene_name", attr("parameters", "scene_name", compound)))
+    v.append(("scene name missing", "parameters@scene_name", lambda h: h["parameters"].attrs.__delitem__("scene_name")))
+
+    def replace(name, data, **kw):
+        def f(h):
+            del h[name]
+            h.create_dataset(name, data=data, **kw)
+        return f
+
+    v.append(("scene as many strings", "parameters/scene",
+              replace("parameters/scene", np.array([b"a", b"b"], dtype=h5py.string_dtype()))))
+    v.append(("scene as numbers", "parameters/scene", replace("parameters/scene", np.arange(5.0))))
+    v.append(("scene missing", "parameters/scene", lambda h: h.__delitem__("parameters/scene")))
+    v.append(("body names of rank 2", "particles/bodies/name",
+              replace("particles/bodies/name", np.array([[b"a", b"b"], [b"c", b"d"]], dtype=h5py.string_dtype()))))
+    v.append(("body names as numbers", "particles/bodies/name", replace("particles/bodies/name", np.zeros(3))))
+
+    def shorter(name, k):
+        def f(h):
+            d = h[name][...]
+            del h[name]
+            h.create_dataset(name, data=d[:k])
+        return f
+
+    v.append(("step shorter than time", "particles/all/position/time", shorter("particles/all/position/step", 2)))
+    v.append(("time shorter than step", "particles/all/position/time", shorter("particles/all/position/time", 1)))
+    v.append(("kinetic energy shorter", "observables/kinetic_energy/value",
+              shorter("observables/kinetic_energy/value", 1)))
+    v.append(("no frames", "no frames", lambda h: [shorter(n, 0)(h) for n in (
+        "particles/all/position/step", "particles/all/position/time", "observables/kinetic_energy/value",
+        "observables/potential_energy/value", "observables/total_energy/value", "patches/offset", "patches/count")]
+        and shorter("particles/all/position/value", 0)(h)))
+
+    def nan_time(h):
+        t = h["particles/all/position/time"]
+        t[1] = np.nan
+    v.append(("a NaN time", "particles/all/position/time[1]", nan_time))
+
+    def backwards(h):
+        s = h["particles/all/position/step"]
+        s[2] = s[0]
+    v.append(("steps going back", "frame 2", backwards))
+    v.append(("step as strings", "particles/all/position/step",
+              replace("particles/all/position/step", np.array([b"x"] * 3, dtype=h5py.string_dtype()))))
+    v.append(("time of rank 2", "particles/all/position/time", replace("particles/all/position/time", np.zeros((3, 2)))))
+
+    def huge(name):
+        def f(h):
+            del h[name]
+            h.create_dataset(name, shape=(10**12,), dtype="f8", chunks=(1024,), compression="gzip")
+        return f
+    v.append(("time claiming 10^12 numbers", "particles/all/position/time", huge("particles/all/position/time")))
+    v.append(("radius claiming 10^12 numbers", "particles/all/radius", huge("particles/all/radius")))
+
+    def positions(shape):
+        def f(h):
+            del h["particles/all/position/value"]
+            h.create_dataset("particles/all/position/value", shape=shape, dtype="f8")
+        return f
+    v.append(("positions with 2 columns", "particles/all/position/value", lambda h: positions(
+        (h["particles/all/position/step"].shape[0], h["particles/all/radius"].shape[0], 2))(h)))
+    v.append(("positions of another particle count", "particles/all/position/value", lambda h: positions(
+        (h["particles/all/position/step"].shape[0], h["particles/all/radius"].shape[0] + 1, 3))(h)))
+    v.append(("positions of fewer frames", "particles/all/position/value", lambda h: positions(
+        (1, h["particles/all/radius"].shape[0], 3))(h)))
+    v.append(("positions a group", "particles/all/position/value", lambda h: (
+        h.__delitem__("particles/all/position/value"), h.create_group("particles/all/position/value"))))
+
+    def offsets(h):
+        o = h["patches/offset"]
+        o[1] = o[1] + 5
+    v.append(("patch offsets that skip rows", "patches/offset", offsets))
+    v.append(("patch counts negative", "patches/offset", lambda h: h["patches/count"].__setitem__(0, -3)))
+    return v
+
+
+def digest(path):
+    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+
+
+def main():
+    volpar, good, work = sys.argv[1], sys.argv[2], sys.argv[3]
+    os.makedirs(work, exist_ok=True)
+    failures = []
+    cases = variants()
+    for i, (name, names, brk) in enumerate(cases):
+        path = os.path.join(work, "hostile_%02d.h5" % i)
+        shutil.copyfile(good, path)
+        with h5py.File(path, "r+") as h:
+            brk(h)
+        before = digest(path)
+        for cmd in ("inspect", "xdmf"):
+            r = subprocess.run([volpar, cmd, path], capture_output=True, text=True, timeout=60)
+            out = r.stdout + r.stderr
+            if r.returncode != 1:
+                failures.append("%s (%s): exit %d, expected 1\n%s" % (name, cmd, r.returncode, out))
+            elif names not in out:
+                failures.append("%s (%s): message does not name %r\n%s" % (name, cmd, names, out))
+            elif "ERROR: AddressSanitizer" in out or "runtime error" in out:
+                failures.append("%s (%s): sanitizer report\n%s" % (name, cmd, out))
+        if digest(path) != before:
+            failures.append("%s: the file was changed" % name)
+    # the good file itself still passes
+    r = subprocess.run([volpar, "inspect", good], capture_output=True, text=True, timeout=60)
+    if r.returncode != 0:
+        failures.append("the unbroken file is refused: %s" % (r.stdout + r.stderr))
+    for f in failures:
+        print("FAIL", f)
+    print("%d hostile trajectories, %d failures" % (len(cases), len(failures)))
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
