@@ -9,6 +9,7 @@
 #include "collision/normal_estimation.hpp"
 #include "collision/reference/fcl_adapter.hpp"
 #include "engine/scene/scene_build.hpp"
+#include "engine/core/percentile.hpp"
 #include "engine/scene/scene_loader.hpp"
 #include "tools/commands.hpp"
 #include "tools/json_writer.hpp"
@@ -16,15 +17,6 @@
 namespace volpar::cli {
 
 namespace {
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const auto i = static_cast<std::size_t>(pos);
-  const double f = pos - static_cast<double>(i);
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
-}
 
 /// Angles [deg] between patch normals and the exact reference, by where the normals came from.
 struct NormalErrors {

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "engine/io/xdmf_writer.hpp"
 #include "engine/run_loop.hpp"
@@ -35,12 +36,13 @@ void progressBar(std::int64_t done, std::int64_t total) {
 }
 
 /// An error when the trajectory would be written over one of the run's inputs (the scene, a mesh it reads,
-/// through any link) or over a folder; an empty message otherwise.
-Error refuseOverwrite(const std::string& output, const std::string& scene, const std::vector<std::string>& inputs) {
+/// through any link) or over a folder.
+std::optional<Error> refuseOverwrite(const std::string& output, const std::string& scene,
+                                     const std::vector<std::string>& inputs) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const fs::path out(output);
-  if (!fs::exists(out, ec)) return {};
+  if (!fs::exists(out, ec)) return std::nullopt;
   if (fs::is_directory(out, ec)) return Error{output, 0, 0, "the output is a folder; expected a file name for the trajectory"};
   const auto same = [&](const std::string& input) {
     std::error_code e;
@@ -49,7 +51,7 @@ Error refuseOverwrite(const std::string& output, const std::string& scene, const
   if (same(scene)) return Error{output, 0, 0, "the output is the scene file itself; refusing to write over an input"};
   for (const std::string& in : inputs)
     if (same(in)) return Error{output, 0, 0, "the output is " + in + ", which the scene reads; refusing to write over an input"};
-  return {};
+  return std::nullopt;
 }
 
 }  // namespace
@@ -69,8 +71,7 @@ int run(const RunArgs& args) {
   options.every = args.every > 0 ? args.every : desc->outputEvery;
   if (!args.noOutput) {
     options.output = args.output.empty() ? std::filesystem::path(args.scene).stem().string() + ".h5" : args.output;
-    if (const auto refused = refuseOverwrite(options.output, args.scene, built->meshFiles); !refused.message.empty())
-      return fail(refused);
+    if (const auto refused = refuseOverwrite(options.output, args.scene, built->meshFiles)) return fail(*refused);
   }
   if (isatty(STDERR_FILENO)) options.progress = progressBar;
   options.stop = &gStop;

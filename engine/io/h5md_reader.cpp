@@ -18,8 +18,10 @@ class Handle {
   Handle(hid_t id, herr_t (*close)(hid_t), const std::string& what) : id_(id), close_(close) {
     if (id < 0) throw ReadFailure{what};
   }
+  Handle(Handle&& o) noexcept : id_(o.id_), close_(o.close_) { o.id_ = H5I_INVALID_HID; }
   Handle(const Handle&) = delete;
   Handle& operator=(const Handle&) = delete;
+  Handle& operator=(Handle&&) = delete;
   ~Handle() {
     if (id_ >= 0) close_(id_);
   }
@@ -48,30 +50,30 @@ std::string shapeText(const std::vector<hsize_t>& d) {
 /// What a dataset must be before it is read: its class, rank and the sizes of its trailing dimensions.
 struct Expect {
   H5T_class_t typeClass;  // H5T_INTEGER or H5T_FLOAT (either is read as numbers), H5T_STRING
-  int rank;
+  int rank;                       // kOneValue: a scalar, or an array of one element
   std::vector<hsize_t> trailing;  // sizes of the last dimensions (e.g. {3} for [T, N, 3])
   const char* what;               // for messages: "one integer per frame", ...
 };
+constexpr int kOneValue = -1;
 
-/// Opens dataset `name` and checks it against `e`: numbers where numbers are expected, strings where strings,
-/// the rank and trailing sizes, and a total size the file can hold (`limit` bytes).
-std::vector<hsize_t> checked(hid_t file, const std::string& name, const Expect& e, std::uint64_t limit, hid_t& out) {
+/// Dataset `name`, open, after checking it against `e`: numbers where numbers are expected, strings where
+/// strings, the rank and trailing sizes, and a total size the file can hold (`limit` bytes); its shape into `d`.
+Handle openChecked(hid_t file, const std::string& name, const Expect& e, std::uint64_t limit, std::vector<hsize_t>& d) {
   if (H5Lexists(file, name.c_str(), H5P_DEFAULT) <= 0) throw ReadFailure{"missing dataset /" + name + " (" + e.what + ")"};
   {
     Handle object(H5Oopen(file, name.c_str(), H5P_DEFAULT), H5Oclose, "cannot open /" + name);
     if (H5Iget_type(object.get()) != H5I_DATASET) throw ReadFailure{"/" + name + " is not a dataset; expected " + e.what};
   }
-  out = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
-  if (out < 0) throw ReadFailure{"cannot open dataset /" + name};
-  Handle type(H5Dget_type(out), H5Tclose, "datatype of /" + name);
+  Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose, "cannot open dataset /" + name);
+  Handle type(H5Dget_type(ds.get()), H5Tclose, "datatype of /" + name);
   const H5T_class_t c = H5Tget_class(type.get());
   const bool numeric = c == H5T_INTEGER || c == H5T_FLOAT;
   if (e.typeClass == H5T_STRING ? c != H5T_STRING : !numeric)
     throw ReadFailure{"/" + name + " holds " + (c == H5T_STRING ? "strings" : c == H5T_COMPOUND ? "compound records" : "values of another type") +
                       "; expected " + e.what};
-  const std::vector<hsize_t> d = dims(out);
-  if (static_cast<int>(d.size()) != e.rank)
-    throw ReadFailure{"/" + name + " has shape " + shapeText(d) + "; expected " + e.what};
+  d = dims(ds.get());
+  const bool rankOk = e.rank == kOneValue ? d.empty() || (d.size() == 1 && d[0] == 1) : static_cast<int>(d.size()) == e.rank;
+  if (!rankOk) throw ReadFailure{"/" + name + " has shape " + shapeText(d) + "; expected " + e.what};
   for (std::size_t k = 0; k < e.trailing.size(); ++k)
     if (d[d.size() - e.trailing.size() + k] != e.trailing[k])
       throw ReadFailure{"/" + name + " has shape " + shapeText(d) + "; expected " + e.what};
@@ -80,39 +82,29 @@ std::vector<hsize_t> checked(hid_t file, const std::string& name, const Expect& 
   for (const hsize_t k : d) bytes *= static_cast<long double>(k);
   if (bytes > static_cast<long double>(limit))
     throw ReadFailure{"/" + name + " claims shape " + shapeText(d) + ", more than the file can hold; expected " + e.what};
-  return d;
+  return ds;
+}
+
+std::size_t elements(const std::vector<hsize_t>& d) {
+  hsize_t n = 1;
+  for (const hsize_t k : d) n *= k;
+  return static_cast<std::size_t>(n);
 }
 
 template <class T>
 std::vector<T> readAll(hid_t file, const std::string& name, hid_t memType, const Expect& e, std::uint64_t limit) {
-  hid_t id = H5I_INVALID_HID;
   std::vector<hsize_t> d;
-  try {
-    d = checked(file, name, e, limit, id);
-  } catch (...) {
-    if (id >= 0) H5Dclose(id);
-    throw;
-  }
-  Handle ds(id, H5Dclose, "dataset /" + name);
-  hsize_t n = 1;
-  for (const hsize_t k : d) n *= k;
-  std::vector<T> out(static_cast<std::size_t>(n));
-  if (n > 0 && H5Dread(ds.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+  const Handle ds = openChecked(file, name, e, limit, d);
+  std::vector<T> out(elements(d));
+  if (!out.empty() && H5Dread(ds.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
     throw ReadFailure{"cannot read /" + name + " as " + e.what};
   return out;
 }
 
 /// Row `row` of a [T, N, k] dataset as N*k doubles.
 std::vector<double> readRow(hid_t file, const std::string& name, std::size_t row, const Expect& e, std::uint64_t limit) {
-  hid_t id = H5I_INVALID_HID;
   std::vector<hsize_t> d;
-  try {
-    d = checked(file, name, e, limit, id);
-  } catch (...) {
-    if (id >= 0) H5Dclose(id);
-    throw;
-  }
-  Handle ds(id, H5Dclose, "dataset /" + name);
+  const Handle ds = openChecked(file, name, e, limit, d);
   if (row >= d[0]) throw ReadFailure{"frame " + std::to_string(row) + " out of range in /" + name + " (" + std::to_string(d[0]) + " frames)"};
   std::vector<hsize_t> start(d.size(), 0), count = d;
   start[0] = row;
@@ -121,10 +113,8 @@ std::vector<double> readRow(hid_t file, const std::string& name, std::size_t row
   if (H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr) < 0)
     throw ReadFailure{"cannot select frame " + std::to_string(row) + " of /" + name};
   Handle memSpace(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr), H5Sclose, "dataspace");
-  hsize_t n = 1;
-  for (const hsize_t c : count) n *= c;
-  std::vector<double> out(static_cast<std::size_t>(n));
-  if (n > 0 && H5Dread(ds.get(), H5T_NATIVE_DOUBLE, memSpace.get(), fileSpace.get(), H5P_DEFAULT, out.data()) < 0)
+  std::vector<double> out(elements(count));
+  if (!out.empty() && H5Dread(ds.get(), H5T_NATIVE_DOUBLE, memSpace.get(), fileSpace.get(), H5P_DEFAULT, out.data()) < 0)
     throw ReadFailure{"cannot read /" + name};
   return out;
 }
@@ -161,39 +151,9 @@ std::string readStringAttr(hid_t file, const std::string& object, const std::str
 
 /// A string dataset: `scalar`, one string (a scalar or an array of one); else a list of them.
 std::vector<std::string> readStrings(hid_t file, const std::string& name, bool scalar, std::uint64_t limit) {
-  const Expect e{H5T_STRING, 1, {}, scalar ? "one string" : "a list of strings"};
-  hid_t id = H5I_INVALID_HID;
+  const Expect e{H5T_STRING, scalar ? kOneValue : 1, {}, scalar ? "one string" : "a list of strings"};
   std::vector<hsize_t> d;
-  try {
-    if (scalar) {
-      // a scalar string: rank 0, or rank 1 of one element
-      Expect e0 = e;
-      e0.rank = 0;
-      if (H5Lexists(file, name.c_str(), H5P_DEFAULT) > 0) {
-        const hid_t probe = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
-        if (probe >= 0) {
-          std::vector<hsize_t> pd;
-          try {
-            pd = dims(probe);
-          } catch (...) {
-            H5Dclose(probe);
-            throw;
-          }
-          H5Dclose(probe);
-          if (pd.empty()) e0.rank = 0;
-          else e0.rank = 1;
-          if (pd.size() == 1 && pd[0] != 1) throw ReadFailure{"/" + name + " holds " + std::to_string(pd[0]) + " strings; expected one"};
-        }
-      }
-      d = checked(file, name, e0, limit, id);
-    } else {
-      d = checked(file, name, e, limit, id);
-    }
-  } catch (...) {
-    if (id >= 0) H5Dclose(id);
-    throw;
-  }
-  Handle ds(id, H5Dclose, "dataset /" + name);
+  const Handle ds = openChecked(file, name, e, limit, d);
   const std::size_t n = d.empty() ? 1 : static_cast<std::size_t>(d[0]);
   Handle type(H5Dget_type(ds.get()), H5Tclose, "datatype of /" + name);
   std::vector<std::string> out;
@@ -303,9 +263,8 @@ Result<TrajectorySummary> H5mdReader::summary() const {
                             "; expected consecutive row ranges"};
     }
     const Expect positions{H5T_FLOAT, 3, {static_cast<hsize_t>(s.particles), 3}, "positions [T, P, 3]"};
-    hid_t id = H5I_INVALID_HID;
-    const std::vector<hsize_t> d = checked(f, "particles/all/position/value", positions, limit, id);
-    if (id >= 0) H5Dclose(id);
+    std::vector<hsize_t> d;
+    openChecked(f, "particles/all/position/value", positions, limit, d);  // (its shape is all it needs)
     if (d[0] != s.frames)
       throw ReadFailure{"/particles/all/position/value has " + std::to_string(d[0]) + " frames but /particles/all/position/step has " +
                         std::to_string(s.frames) + "; expected one step number per frame"};

@@ -55,15 +55,6 @@ CommandResult runCommand(const std::string& command) {
 
 std::string volparBinary() { return VOLPAR_BINARY; }
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const auto i = static_cast<std::size_t>(pos);
-  const double f = pos - static_cast<double>(i);
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
-}
-
 std::string exactNumber(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.17g", v);

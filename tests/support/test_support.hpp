@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "engine/core/percentile.hpp"
+
 #include "engine/scene/scene_build.hpp"
 #include "engine/scene/scene_loader.hpp"
 #include "engine/world.hpp"
@@ -34,8 +36,7 @@ CommandResult runCommand(const std::string& command);
 /// The volpar executable built with these tests.
 std::string volparBinary();
 
-/// The q-quantile (0..1) of v, interpolated between neighbouring ranks; 0 for an empty v.
-[[nodiscard]] double percentile(std::vector<double> v, double q);
+using volpar::percentile;  // engine/core/percentile.hpp
 
 /// A number as YAML reads it back exactly (17 significant digits).
 [[nodiscard]] std::string exactNumber(double v);
