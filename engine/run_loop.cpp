@@ -2,6 +2,9 @@
 
 #include <chrono>
 #include <csignal>
+#include <filesystem>
+
+#include "engine/io/xdmf_writer.hpp"
 
 namespace volpar {
 
@@ -9,19 +12,48 @@ namespace {
 using Clock = std::chrono::steady_clock;
 }
 
+std::string partialPath(const std::string& output) {
+  const std::filesystem::path p(output);
+  return (p.parent_path() / (p.stem().string() + ".partial" + p.extension().string())).string();
+}
+
 Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunOptions& options) {
   RunSummary summary;
   summary.bodies = world.bodies().size();
   summary.particles = world.particles().size();
-  summary.output = options.output;
   summary.energyStart = world.energy();
 
+  // The trajectory grows under its partial name and takes its own name only when the run ends well: an
+  // earlier file of that name survives a failed run, and a partial file says what it is.
+  const std::string partial = options.output.empty() ? std::string() : partialPath(options.output);
+  summary.output = partial;
   std::unique_ptr<H5mdWriter> writer;
+  // a failure after the file exists: the complete frames stay in the partial file (with its sidecar)
+  const auto keepPartial = [&](const Error& e) {
+    Error out = e;
+    if (writer) {
+      static_cast<void>(writer->writeSidecar(partial));
+      static_cast<void>(writer->close());
+      out.message += "; " + std::to_string(writer->frames()) + " complete frames are kept in " + partial;
+    }
+    return out;
+  };
   if (!options.output.empty()) {
-    auto created = H5mdWriter::create(options.output, world, meta);
-    if (!created) return created.error();
+    auto created = H5mdWriter::create(partial, world, meta);
+    const auto removePartial = [&] {
+      writer.reset();
+      std::error_code ignored;
+      std::filesystem::remove(partial, ignored);
+    };
+    if (!created) {
+      removePartial();
+      return created.error();
+    }
     writer = std::move(created.value());
-    if (auto ok = writer->writeFrame(world); !ok) return ok.error();
+    if (auto ok = writer->writeFrame(world); !ok) {
+      removePartial();
+      return ok.error();
+    }
   }
 
   const auto start = Clock::now();
@@ -51,20 +83,19 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
     if (hasFlag(status, StepStatus::NonFinite)) {
       failure = Error{"", 0, 0,
                       "the simulation became non-finite (NaN or infinity) at step " + std::to_string(world.stepIndex()) +
-                          " (t = " + std::to_string(world.time()) + " s); stopped" +
-                          (writer ? "; the trajectory holds every frame before it" : "")};
+                          " (t = " + std::to_string(world.time()) + " s); stopped"};
       failed = true;
       break;
     }
     if (writer && !world.breakEvents().empty()) {
-      if (auto ok = writer->writeBreakEvents(world); !ok) return ok.error();
+      if (auto ok = writer->writeBreakEvents(world); !ok) return keepPartial(ok.error());
     }
     summary.connectorsBroken += world.breakEvents().size();
     summary.bodiesCreated += world.stats().bodiesCreated;
     summary.normalsRecomputed += world.stats().normalsRecomputed;
     const bool last = i + 1 == options.steps;
     if (writer && (world.stepIndex() % every == 0 || last)) {
-      if (auto ok = writer->writeFrame(world); !ok) return ok.error();
+      if (auto ok = writer->writeFrame(world); !ok) return keepPartial(ok.error());
       lastWritten = world.stepIndex();
       if (options.killAfterFrames > 0 && static_cast<std::int64_t>(writer->frames()) >= options.killAfterFrames)
         std::raise(SIGKILL);
@@ -76,12 +107,12 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
     }
     // keep the sidecar usable while a long run goes on
     if (writer && now - lastSidecar > std::chrono::seconds(10)) {
-      static_cast<void>(writer->writeSidecar());
+      static_cast<void>(writer->writeSidecar(partial));
       lastSidecar = now;
     }
   }
   if (writer && summary.interrupted && world.stepIndex() != lastWritten) {
-    if (auto ok = writer->writeFrame(world); !ok) return ok.error();
+    if (auto ok = writer->writeFrame(world); !ok) return keepPartial(ok.error());
   }
   summary.wallSeconds = std::chrono::duration<double>(Clock::now() - start).count();
   summary.stepsPerSecond = summary.stepSeconds > 0.0 ? static_cast<double>(summary.steps) / summary.stepSeconds : 0.0;
@@ -89,8 +120,17 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
   if (options.progress) options.progress(summary.steps, options.steps);
   if (writer) {
     summary.frames = writer->frames();
-    if (auto ok = writer->writeSidecar(); !ok) return ok.error();
-    if (auto ok = writer->close(); !ok) return ok.error();
+    if (failed) return keepPartial(failure);
+    if (auto ok = writer->close(); !ok) return keepPartial(ok.error());
+    if (!summary.interrupted) {
+      std::error_code ec;
+      std::filesystem::rename(partial, options.output, ec);
+      if (ec)
+        return keepPartial(Error{options.output, 0, 0, "cannot rename the finished trajectory to its name: " + ec.message()});
+      std::filesystem::remove(sidecarPath(partial), ec);
+      summary.output = options.output;
+    }
+    if (auto ok = writer->writeSidecar(summary.output); !ok) return ok.error();
   }
   if (failed) return failure;
   return summary;

@@ -13,6 +13,10 @@
 
 namespace volpar {
 
+/// Where a run writes its trajectory until it ends well (`out.partial.h5` for `out.h5`); an interrupted or
+/// failed run leaves its complete frames there.
+[[nodiscard]] std::string partialPath(const std::string& output);
+
 struct RunOptions {
   std::string output;          ///< trajectory path; empty = no file
   std::int64_t steps = 0;      ///< steps to take
@@ -49,7 +53,7 @@ struct RunSummary {
   std::size_t bodiesCreated = 0;     ///< fragments of bodies that broke apart
   std::size_t normalsRecomputed = 0; ///< cached surface normals recomputed after breaks and strain
   bool interrupted = false;
-  std::string output;
+  std::string output;  ///< the trajectory written: the output's name, or its partial name when interrupted
 };
 
 [[nodiscard]] Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunOptions& options);

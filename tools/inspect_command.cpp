@@ -47,6 +47,7 @@ int inspect(const std::string& path, bool json) {
         .field("version", s.creatorVersion)
         .field("scene", s.sceneName)
         .field("frames", s.frames)
+        .field("torn_frames", s.tornFrames)
         .field("particles", s.particles)
         .field("bodies", s.bodies)
         .field("time_start", s.time.empty() ? 0.0 : s.time.front())
@@ -64,7 +65,10 @@ int inspect(const std::string& path, bool json) {
   if (!s.time.empty())
     std::printf(" (steps %lld..%lld, t = %.6g..%.6g s)", static_cast<long long>(s.step.front()),
                 static_cast<long long>(s.step.back()), s.time.front(), s.time.back());
-  std::printf("\nparticles    %zu\nbodies       %zu\n", s.particles, s.bodies);
+  std::printf("\n");
+  if (s.tornFrames > 0)
+    std::printf("             (then %zu frame cut short, ignored: the run was killed or its disk filled)\n", s.tornFrames);
+  std::printf("particles    %zu\nbodies       %zu\n", s.particles, s.bodies);
   if (!s.total.empty())
     std::printf("energy       %.9g J -> %.9g J (kinetic %.6g -> %.6g J)\n", e0, e1, s.kinetic.front(), s.kinetic.back());
   return 0;

@@ -71,7 +71,8 @@ int run(const RunArgs& args) {
   options.every = args.every > 0 ? args.every : desc->outputEvery;
   if (!args.noOutput) {
     options.output = args.output.empty() ? std::filesystem::path(args.scene).stem().string() + ".h5" : args.output;
-    if (const auto refused = refuseOverwrite(options.output, args.scene, built->meshFiles)) return fail(*refused);
+    for (const std::string& out : {options.output, partialPath(options.output)})
+      if (const auto refused = refuseOverwrite(out, args.scene, built->meshFiles)) return fail(*refused);
   }
   if (isatty(STDERR_FILENO)) options.progress = progressBar;
   options.stop = &gStop;
@@ -163,6 +164,8 @@ int run(const RunArgs& args) {
     if (!s.output.empty())
       std::printf("trajectory   %s (%zu frames), sidecar %s\n", s.output.c_str(), s.frames, sidecarPath(s.output).c_str());
   }
+  if (s.interrupted && !s.output.empty())
+    std::fprintf(stderr, "volpar: interrupted; the %zu complete frames are kept in %s\n", s.frames, s.output.c_str());
   return s.interrupted ? 130 : 0;
 }
 

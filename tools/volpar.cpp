@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include <charconv>
+#include <csignal>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -45,6 +46,8 @@ CLI::Validator positiveFinite() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // a file-size limit (ulimit -f) makes a write fail like a full disk, reported, instead of killing volpar
+  std::signal(SIGXFSZ, SIG_IGN);
   using namespace volpar::cli;
   CLI::App app{"volpar: volumetric particle physics engine"};
   app.set_version_flag("--version", std::string(volpar::kName) + " " + volpar::kVersion);

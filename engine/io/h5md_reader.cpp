@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <optional>
 
 namespace volpar {
 
@@ -185,6 +186,22 @@ std::vector<std::string> readStrings(hid_t file, const std::string& name, bool s
   return out;
 }
 
+/// An optional whole-number attribute (a scalar); nullopt when the object or the attribute is absent.
+std::optional<std::int64_t> readCountAttr(hid_t file, const std::string& object, const std::string& name) {
+  const std::string where = "/" + object + "@" + name;
+  if (H5Lexists(file, object.c_str(), H5P_DEFAULT) <= 0 || H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) <= 0)
+    return std::nullopt;
+  Handle attr(H5Aopen_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+              "cannot open attribute " + where);
+  Handle type(H5Aget_type(attr.get()), H5Tclose, "attribute type");
+  Handle space(H5Aget_space(attr.get()), H5Sclose, "attribute dataspace");
+  if (H5Tget_class(type.get()) != H5T_INTEGER || H5Sget_simple_extent_npoints(space.get()) != 1)
+    throw ReadFailure{where + " is not one whole number; expected the count of complete frames"};
+  std::int64_t v = 0;
+  if (H5Aread(attr.get(), H5T_NATIVE_INT64, &v) < 0) throw ReadFailure{"cannot read " + where};
+  return v;
+}
+
 }  // namespace
 
 struct H5mdReader::Impl {
@@ -232,6 +249,15 @@ Result<TrajectorySummary> H5mdReader::summary() const {
     s.step = readAll<std::int64_t>(f, "particles/all/position/step", H5T_NATIVE_INT64, stepPerFrame, limit);
     s.time = readAll<double>(f, "particles/all/position/time", H5T_NATIVE_DOUBLE, perFrame, limit);
     s.frames = s.step.size();
+    // a run killed (or stopped by a full disk) in the middle of a frame: frames_complete excludes that frame
+    const std::optional<std::int64_t> complete = readCountAttr(f, "parameters", "frames_complete");
+    if (complete) {
+      if (*complete < 0 || static_cast<std::uint64_t>(*complete) > s.frames || s.frames - static_cast<std::uint64_t>(*complete) > 1)
+        throw ReadFailure{"/parameters@frames_complete is " + std::to_string(*complete) + " but /particles/all/position/step has " +
+                          std::to_string(s.frames) + " entries; expected the count of them, or one less (a frame cut short)"};
+      s.tornFrames = s.frames - static_cast<std::size_t>(*complete);
+      s.frames = static_cast<std::size_t>(*complete);
+    }
     s.particles = readAll<double>(f, "particles/all/radius", H5T_NATIVE_DOUBLE, {H5T_FLOAT, 1, {}, "one radius per particle, [P]"}, limit).size();
     s.bodyNames = readStrings(f, "particles/bodies/name", false, limit);
     s.bodies = s.bodyNames.size();
@@ -243,11 +269,13 @@ Result<TrajectorySummary> H5mdReader::summary() const {
       s.patchOffset = readAll<std::int64_t>(f, "patches/offset", H5T_NATIVE_INT64, rows, limit);
       s.patchCount = readAll<std::int64_t>(f, "patches/count", H5T_NATIVE_INT64, rows, limit);
     }
-    // the per-frame records agree with each other and with the frames of the positions
+    // the per-frame records agree with each other and with the frames of the positions (a record of a
+    // frame cut short may be there or not)
+    const std::size_t written = s.frames + s.tornFrames;
     const auto frames = [&](const std::string& name, std::size_t n) {
-      if (n != s.frames)
+      if (n < s.frames || n > written)
         throw ReadFailure{"/" + name + " has " + std::to_string(n) + " entries but /particles/all/position/step has " +
-                          std::to_string(s.frames) + "; expected one per frame"};
+                          std::to_string(written) + "; expected one per frame"};
     };
     frames("particles/all/position/time", s.time.size());
     frames("observables/kinetic_energy/value", s.kinetic.size());
@@ -265,9 +293,15 @@ Result<TrajectorySummary> H5mdReader::summary() const {
     const Expect positions{H5T_FLOAT, 3, {static_cast<hsize_t>(s.particles), 3}, "positions [T, P, 3]"};
     std::vector<hsize_t> d;
     openChecked(f, "particles/all/position/value", positions, limit, d);  // (its shape is all it needs)
-    if (d[0] != s.frames)
+    if (d[0] < s.frames || d[0] > written)
       throw ReadFailure{"/particles/all/position/value has " + std::to_string(d[0]) + " frames but /particles/all/position/step has " +
-                        std::to_string(s.frames) + "; expected one step number per frame"};
+                        std::to_string(written) + "; expected one step number per frame"};
+    for (auto* v : {&s.time, &s.kinetic, &s.potential, &s.total}) v->resize(s.frames);
+    s.step.resize(s.frames);
+    if (!s.patchOffset.empty()) {
+      s.patchOffset.resize(s.frames);
+      s.patchCount.resize(s.frames);
+    }
     // what a trajectory must not hold: no frame, times that are not numbers or that go back
     if (s.frames == 0) throw ReadFailure{"the trajectory has no frames; expected at least the first (step 0)"};
     for (std::size_t i = 0; i < s.frames; ++i) {

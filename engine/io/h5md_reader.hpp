@@ -16,7 +16,8 @@ struct TrajectorySummary {
   std::string creatorVersion;
   std::string sceneName;
   std::string sceneText;
-  std::size_t frames = 0;
+  std::size_t frames = 0;       ///< complete frames
+  std::size_t tornFrames = 0;   ///< records of a frame cut short after them (a killed run, a full disk): ignored
   std::size_t particles = 0;
   std::size_t bodies = 0;
   std::vector<std::int64_t> step;    ///< [T]

@@ -1,6 +1,8 @@
 #include "engine/io/h5md_writer.hpp"
 
 #include <hdf5.h>
+#include <sys/resource.h>
+#include <sys/statvfs.h>
 
 #include <array>
 #include <limits>
@@ -16,6 +18,24 @@
 namespace volpar {
 
 namespace {
+
+// HDF5 closes whatever is still open when the process exits; after a close that failed (a full disk) its
+// own exit handler crashes. Every file here is closed explicitly, so that handler is not wanted (it must be
+// declined before the library's first use, hence at static initialisation).
+[[maybe_unused]] const bool kHdf5NoExitHandler = H5dont_atexit() >= 0;
+
+/// Bytes a file of `size` bytes at `path` may still grow by: the least of its disk's free space and the
+/// process's file-size limit (ulimit -f).
+std::uint64_t roomToGrow(const std::string& path, std::uint64_t size) {
+  std::uint64_t room = std::numeric_limits<std::uint64_t>::max();
+  struct rlimit limit {};
+  if (getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY)
+    room = limit.rlim_cur > size ? static_cast<std::uint64_t>(limit.rlim_cur) - size : 0;
+  struct statvfs disk {};
+  if (statvfs(path.c_str(), &disk) == 0)
+    room = std::min<std::uint64_t>(room, static_cast<std::uint64_t>(disk.f_bavail) * disk.f_frsize);
+  return room;
+}
 
 /// Owns an HDF5 identifier.
 class Hid {
@@ -41,6 +61,12 @@ class Hid {
   }
   [[nodiscard]] hid_t get() const { return id_; }
   [[nodiscard]] bool valid() const { return id_ >= 0; }
+  /// Gives up ownership (the caller closes it and checks the result).
+  [[nodiscard]] hid_t release() {
+    const hid_t id = id_;
+    id_ = H5I_INVALID_HID;
+    return id;
+  }
 
  private:
   hid_t id_ = H5I_INVALID_HID;
@@ -153,9 +179,14 @@ void attrFixedStrings(hid_t obj, const std::string& name, const std::vector<std:
   check(H5Awrite(attr.get(), type.get(), buf.data()), "attribute " + name);
 }
 
-Hid compressedPlist(const std::vector<hsize_t>& chunk) {
+Hid chunkedPlist(const std::vector<hsize_t>& chunk) {
   Hid dcpl = datasetPlist();
   check(H5Pset_chunk(dcpl.get(), static_cast<int>(chunk.size()), chunk.data()), "chunk");
+  return dcpl;
+}
+
+Hid compressedPlist(const std::vector<hsize_t>& chunk) {
+  Hid dcpl = chunkedPlist(chunk);
   check(H5Pset_shuffle(dcpl.get()), "shuffle");
   check(H5Pset_deflate(dcpl.get(), 1), "deflate");
   return dcpl;
@@ -236,12 +267,23 @@ class Series {
     }
     for (hsize_t& c : chunk) c = std::max<hsize_t>(c, 1);
     Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), maxdims.data()), H5Sclose, "space");
-    Hid dcpl = compressedPlist(chunk);
+    // A chunk that one append fills is written once, compressed. A chunk that fills over several appends is
+    // rewritten each time: uncompressed, so it keeps its place in the file. (A compressed chunk that grows
+    // moves, HDF5 reuses its old space, and a run killed before the next flush would leave the frames
+    // already counted complete pointing at overwritten bytes.)
+    const bool writtenOnce = chunk[0] == 1 && !growable;
+    Hid dcpl = writtenOnce ? compressedPlist(chunk) : chunkedPlist(chunk);
     if (H5Tget_class(type) == H5T_FLOAT) {
       const double nan = std::numeric_limits<double>::quiet_NaN();
       check(H5Pset_fill_value(dcpl.get(), H5T_NATIVE_DOUBLE, &nan), "fill value");
     }
-    ds_ = checked(H5Dcreate2(parent, name.c_str(), type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
+    // Appended, never read back: a cache of two chunks (the one being filled and the one before) is enough.
+    // HDF5's default, 1 MiB per dataset, made a long run's memory climb by tens of MiB before it levelled.
+    hsize_t chunkBytes = H5Tget_size(type);
+    for (const hsize_t c : chunk) chunkBytes *= c;
+    Hid dapl = checked(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose, "dataset access property list");
+    check(H5Pset_chunk_cache(dapl.get(), 11, static_cast<std::size_t>(2 * chunkBytes), 1.0), "chunk cache");
+    ds_ = checked(H5Dcreate2(parent, name.c_str(), type, space.get(), H5P_DEFAULT, dcpl.get(), dapl.get()), H5Dclose,
                   "dataset " + name);
   }
 
@@ -451,6 +493,7 @@ struct BreakageSeries {
 
 struct H5mdWriter::Impl {
   Hid file;
+  Hid framesComplete;  // /parameters@frames_complete: the frames whose every record is on disk
   Element position, velocity, particleBody;
   Element bodyPosition, bodyOrientation, bodyVelocity, bodyAngularVelocity;
   Element kinetic, potential, total, linearMomentum, angularMomentum, contactCount, maxPenetration;
@@ -469,7 +512,6 @@ struct H5mdWriter::Impl {
   std::vector<std::int32_t> patchA, patchB, patchPlane, patchCase, patchSource, patchLookAheadCase, patchContacts;
   std::vector<double> patchPoint, patchNormal, patchDepth;
   std::vector<std::int8_t> patchValidated, patchLookAhead;
-  std::size_t particles = 0;
 
   /// Rows for bodies created since the last call; the retirement of bodies that broke apart.
   void syncBodies(const BodyStore& b) {
@@ -508,7 +550,8 @@ struct H5mdWriter::Impl {
   }
 };
 
-H5mdWriter::H5mdWriter(std::unique_ptr<Impl> impl, std::string path) : impl_(std::move(impl)), path_(std::move(path)) {}
+H5mdWriter::H5mdWriter(std::unique_ptr<Impl> impl, std::string path, std::size_t particles)
+    : impl_(std::move(impl)), path_(std::move(path)), particles_(particles) {}
 
 H5mdWriter::~H5mdWriter() { static_cast<void>(close()); }
 
@@ -517,13 +560,23 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are reported through Result, not printed by HDF5
   auto impl = std::make_unique<Impl>();
   try {
-    impl->file = checked(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose, "create file");
+    // The metadata cache (chunk indices of ~80 growing datasets) is held to a few MiB: by default it may grow
+    // to 32 MiB over a long run, and a run's memory should stay flat (docs/hardening.md, soak).
+    Hid fapl = checked(H5Pcreate(H5P_FILE_ACCESS), H5Pclose, "file access property list");
+    H5AC_cache_config_t mdc{};
+    mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+    check(H5Pget_mdc_config(fapl.get(), &mdc), "metadata cache settings");
+    mdc.set_initial_size = true;
+    mdc.initial_size = std::size_t{1} << 20;
+    mdc.max_size = std::size_t{4} << 20;
+    mdc.min_size = std::min(mdc.min_size, mdc.initial_size);
+    check(H5Pset_mdc_config(fapl.get(), &mdc), "metadata cache settings");
+    impl->file = checked(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose, "create file");
     const hid_t f = impl->file.get();
     const ParticleStore& p = world.particles();
     const BodyStore& b = world.bodies();
     const hsize_t np = p.size();
     const hsize_t nb = b.size();
-    impl->particles = p.size();
 
     // /h5md
     {
@@ -611,6 +664,8 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       attrScalar<std::int32_t>(par.get(), "substeps", s.substeps);
       attrScalar<std::int32_t>(par.get(), "output_every", meta.outputEvery);
       attrScalar<std::int64_t>(par.get(), "steps_requested", meta.stepsRequested);
+      attrScalar<std::int64_t>(par.get(), "frames_complete", 0);
+      impl->framesComplete = checked(H5Aopen(par.get(), "frames_complete", H5P_DEFAULT), H5Aclose, "attribute frames_complete");
       // planes: normal (3) and offset per row
       std::vector<double> planes;
       for (const Plane& pl : world.planes()) planes.insert(planes.end(), {pl.normal.x(), pl.normal.y(), pl.normal.z(), pl.offset});
@@ -632,7 +687,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
   } catch (const H5Failure& e) {
     return Error{path, 0, 0, "cannot write trajectory (" + e.what + ")"};
   }
-  return std::unique_ptr<H5mdWriter>(new H5mdWriter(std::move(impl), path));
+  return std::unique_ptr<H5mdWriter>(new H5mdWriter(std::move(impl), path, world.particles().size()));
 }
 
 Status H5mdWriter::writeFrame(const World& world) {
@@ -642,6 +697,17 @@ Status H5mdWriter::writeFrame(const World& world) {
   const ParticleStore& p = world.particles();
   const BodyStore& b = world.bodies();
   Impl& m = *impl_;
+  // A write that fails part way can leave HDF5's record of the file's end past its real end, and such a file
+  // no longer opens: a frame is begun only with room on the disk for twice the largest frame so far, plus
+  // room to close the file.
+  hsize_t sizeBefore = 0;
+  if (H5Fget_filesize(m.file.get(), &sizeBefore) < 0) return Error{path_, 0, 0, "cannot read the trajectory's size"};
+  constexpr std::uint64_t kCloseRoom = std::uint64_t{1} << 20;
+  const std::uint64_t needed = 2 * largestFrame_ + kCloseRoom;
+  if (const std::uint64_t room = roomToGrow(path_, sizeBefore); room < needed)
+    return Error{path_, 0, 0, "not enough room: the disk or the file-size limit leaves " + std::to_string(room) +
+                                  " more bytes and a frame may need " + std::to_string(needed) + "; stopped before frame " +
+                                  std::to_string(times_.size())};
   try {
     m.position.append(H5T_NATIVE_DOUBLE, p.position.data()->data(), step, time);
     m.velocity.append(H5T_NATIVE_DOUBLE, p.velocity.data()->data(), step, time);
@@ -698,10 +764,19 @@ Status H5mdWriter::writeFrame(const World& world) {
     writeContacts(world.contacts());
     writePatches(world.patches());
 
+    // All or nothing: the frame's records reach the disk first, then the count that includes it, so a
+    // kill or a full disk at any point leaves a count of frames that are all complete (docs/hardening.md).
+    check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");
+    const auto complete = static_cast<std::int64_t>(times_.size() + 1);
+    check(H5Awrite(m.framesComplete.get(), H5T_NATIVE_INT64, &complete), "attribute frames_complete");
     check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");
   } catch (const H5Failure& e) {
-    return Error{path_, 0, 0, "cannot write frame (" + e.what + ")"};
+    return Error{path_, 0, 0, "cannot write frame " + std::to_string(times_.size()) + " (" + e.what + "); the file holds " +
+                                  std::to_string(times_.size()) + " complete frames"};
   }
+  hsize_t sizeAfter = 0;
+  if (H5Fget_filesize(m.file.get(), &sizeAfter) >= 0 && sizeAfter > sizeBefore)
+    largestFrame_ = std::max<std::uint64_t>(largestFrame_, sizeAfter - sizeBefore);
   times_.push_back(time);
   steps_.push_back(step);
   const auto patches = static_cast<std::int64_t>(world.patches().patches.size());
@@ -823,10 +898,10 @@ Status H5mdWriter::writeBreakEvents(const World& world) {
   return okStatus();
 }
 
-Status H5mdWriter::writeSidecar() const {
+Status H5mdWriter::writeSidecar(const std::string& h5Path) const {
   XdmfFrames f;
-  f.h5Path = path_;
-  f.particles = impl_ ? impl_->particles : 0;
+  f.h5Path = h5Path;
+  f.particles = particles_;
   f.time = times_;
   f.step = steps_;
   f.patchOffset = patchOffsets_;
@@ -837,8 +912,10 @@ Status H5mdWriter::writeSidecar() const {
 Status H5mdWriter::close() {
   if (!impl_ || !impl_->file.valid()) return okStatus();
   const herr_t flushed = H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
-  impl_.reset();  // closes every dataset, then the file
-  if (flushed < 0) return Error{path_, 0, 0, "cannot flush trajectory"};
+  const hid_t file = impl_->file.release();
+  impl_.reset();  // closes every dataset and attribute
+  const herr_t closed = H5Fclose(file);
+  if (flushed < 0 || closed < 0) return Error{path_, 0, 0, "cannot flush and close the trajectory (disk full?)"};
   return okStatus();
 }
 

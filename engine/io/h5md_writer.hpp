@@ -1,7 +1,8 @@
 #pragma once
 // Trajectory output in the H5MD 1.1 layout (docs/trajectory-format.md). Every time-dependent element is
-// a chunked, compressed dataset extended one frame at a time; the file is flushed after every frame, so a
-// run killed mid-way leaves a readable file holding every frame written so far. HDF5 types stay in the .cpp.
+// a chunked, compressed dataset extended one frame at a time; the file is flushed after every frame and then
+// /parameters@frames_complete counts it, so a run killed (or a disk that fills) mid-way leaves a readable file
+// whose first frames_complete frames are whole. HDF5 types stay in the .cpp.
 
 #include <memory>
 #include <string>
@@ -34,8 +35,9 @@ class H5mdWriter {
   [[nodiscard]] Status writeFrame(const World& world);
   /// Appends the connectors that broke in the world's last step to /breakage (written with the next flush).
   [[nodiscard]] Status writeBreakEvents(const World& world);
-  /// Writes the XDMF sidecar for the frames so far (see xdmf_writer.hpp).
-  [[nodiscard]] Status writeSidecar() const;
+  /// Writes the XDMF sidecar of `h5Path` (this file, or the name it was renamed to) for the frames so far
+  /// (see xdmf_writer.hpp).
+  [[nodiscard]] Status writeSidecar(const std::string& h5Path) const;
   /// Flushes and closes the file (also done by the destructor).
   [[nodiscard]] Status close();
 
@@ -44,12 +46,14 @@ class H5mdWriter {
 
  private:
   struct Impl;
-  explicit H5mdWriter(std::unique_ptr<Impl> impl, std::string path);
+  H5mdWriter(std::unique_ptr<Impl> impl, std::string path, std::size_t particles);
   void writeContacts(const ContactSet& contacts);  // throws the file's internal failure type
   void writePatches(const PatchSet& patches);      // likewise
 
   std::unique_ptr<Impl> impl_;
   std::string path_;
+  std::size_t particles_ = 0;
+  std::uint64_t largestFrame_ = 0;  ///< the most bytes a frame has added to the file
   std::vector<double> times_;
   std::vector<std::int64_t> steps_;
   std::vector<std::int64_t> patchOffsets_;  // per frame: its first row in /patches

@@ -55,14 +55,29 @@ def variants():
             h.create_dataset(name, data=d[:k])
         return f
 
-    v.append(("step shorter than time", "particles/all/position/time", shorter("particles/all/position/step", 2)))
+    def complete(n):
+        def f(h):
+            h["parameters"].attrs["frames_complete"] = np.int64(n)
+        return f
+
+    v.append(("step shorter than time", "particles/all/position/time",
+              lambda h: (shorter("particles/all/position/step", 2)(h), complete(2)(h))))
     v.append(("time shorter than step", "particles/all/position/time", shorter("particles/all/position/time", 1)))
     v.append(("kinetic energy shorter", "observables/kinetic_energy/value",
               shorter("observables/kinetic_energy/value", 1)))
     v.append(("no frames", "no frames", lambda h: [shorter(n, 0)(h) for n in (
         "particles/all/position/step", "particles/all/position/time", "observables/kinetic_energy/value",
         "observables/potential_energy/value", "observables/total_energy/value", "patches/offset", "patches/count")]
-        and shorter("particles/all/position/value", 0)(h)))
+        and shorter("particles/all/position/value", 0)(h) or complete(0)(h)))
+    v.append(("more complete frames than frames", "parameters@frames_complete",
+              lambda h: complete(h["particles/all/position/step"].shape[0] + 1)(h)))
+    v.append(("negative complete frames", "parameters@frames_complete", complete(-1)))
+    v.append(("complete frames as a string", "parameters@frames_complete",
+              attr("parameters", "frames_complete", "3")))
+    v.append(("complete frames as an array", "parameters@frames_complete",
+              attr("parameters", "frames_complete", np.array([1, 2], dtype=np.int64))))
+    v.append(("two frames past the complete ones", "parameters@frames_complete",
+              lambda h: complete(h["particles/all/position/step"].shape[0] - 2)(h)))
 
     def nan_time(h):
         t = h["particles/all/position/time"]
@@ -137,6 +152,15 @@ def main():
     r = subprocess.run([volpar, "inspect", good], capture_output=True, text=True, timeout=60)
     if r.returncode != 0:
         failures.append("the unbroken file is refused: %s" % (r.stdout + r.stderr))
+    # a frame cut short after the complete ones (a killed run) is reported and left out, not refused
+    torn = os.path.join(work, "torn.h5")
+    shutil.copyfile(good, torn)
+    with h5py.File(torn, "r+") as h:
+        frames = h["particles/all/position/step"].shape[0]
+        h["parameters"].attrs["frames_complete"] = np.int64(frames - 1)
+    r = subprocess.run([volpar, "inspect", "--json", torn], capture_output=True, text=True, timeout=60)
+    if r.returncode != 0 or '"frames": %d' % (frames - 1) not in r.stdout or '"torn_frames": 1' not in r.stdout:
+        failures.append("a file with one frame cut short: exit %d\n%s" % (r.returncode, r.stdout + r.stderr))
     for f in failures:
         print("FAIL", f)
     print("%d hostile trajectories, %d failures" % (len(cases), len(failures)))
