@@ -17,7 +17,23 @@ function(volpar_target_options target)
   target_include_directories(${target} PUBLIC ${PROJECT_SOURCE_DIR})
 endfunction()
 
-if(VOLPAR_SANITIZE)
+# VOLPAR_FUZZ (Clang only): every target gets libFuzzer's coverage instrumentation
+# (-fsanitize=fuzzer-no-link) on top of the sanitizers; the targets in fuzz/ add -fsanitize=fuzzer,
+# which links libFuzzer's driver.
+set(VOLPAR_FUZZ_ENABLED OFF)
+if(VOLPAR_FUZZ)
+  if(CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    set(VOLPAR_FUZZ_ENABLED ON)
+  else()
+    message(WARNING "VOLPAR_FUZZ needs Clang (CMAKE_CXX_COMPILER=clang++); "
+                    "${CMAKE_CXX_COMPILER_ID} is in use, so the fuzz targets are not built")
+  endif()
+endif()
+
+if(VOLPAR_SANITIZE OR VOLPAR_FUZZ_ENABLED)
   add_compile_options(-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer)
   add_link_options(-fsanitize=address,undefined)
+endif()
+if(VOLPAR_FUZZ_ENABLED)
+  add_compile_options(-fsanitize=fuzzer-no-link)
 endif()

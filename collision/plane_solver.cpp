@@ -706,8 +706,9 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
   if (!hull_.separated) return out;
   // the counted particles along the hulls' direction, and the closest points again if they changed
   const Vec3 d1 = hull_.direction;
-  const bool changed = select(a_, d1) | select(b_, -d1);
-  if (changed) {
+  const bool changedA = select(a_, d1);  // both sides are selected again, whatever the first returns
+  const bool changedB = select(b_, -d1);
+  if (changedA || changedB) {
     const HullDistance again = hullDistance(a_.hull, b_.hull);
     if (!again.separated) {
       select(a_, d0);

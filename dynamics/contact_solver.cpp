@@ -502,7 +502,8 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       const float tx = l1 * b.t1.dx[l] + l2 * b.t2.dx[l], ty = l1 * b.t1.dy[l] + l2 * b.t2.dy[l],
                   tz = l1 * b.t1.dz[l] + l2 * b.t2.dz[l];
       next[l] = Cached{ln, V4(tx, ty, tz, 0.0f)};
-      const Vec3 impulse(ln * b.n.dx[l] + tx, ln * b.n.dy[l] + ty, ln * b.n.dz[l] + tz);
+      const Vec3 impulse(static_cast<double>(ln * b.n.dx[l] + tx), static_cast<double>(ln * b.n.dy[l] + ty),
+                         static_cast<double>(ln * b.n.dz[l] + tz));
       impulses_[order_[k]] = impulse;
       sum += static_cast<double>(ln);
       // (into the slots' double velocities: each half's slots lie apart from the other's, so the two

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "engine/core/status.hpp"
 
@@ -18,6 +19,8 @@ struct RunArgs {
   bool json = false;
   int threads = 1;
   std::int64_t killAfterFrames = 0;
+  std::vector<std::string> allowDirs;  ///< folders besides the scene's that its meshes may lie in
+  double memoryLimitGiB = 0.0;         ///< 0: 80 % of the machine's memory
 };
 
 struct CheckArgs {
@@ -26,6 +29,8 @@ struct CheckArgs {
   double duration = 0.0;
   bool json = false;
   int details = 10;
+  std::vector<std::string> allowDirs;
+  double memoryLimitGiB = 0.0;
 };
 
 int run(const RunArgs& args);

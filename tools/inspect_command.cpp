@@ -1,8 +1,17 @@
 // volpar inspect and volpar xdmf: reading trajectories back.
 
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
+#include <optional>
+#include <thread>
 
 #include "engine/io/h5md_reader.hpp"
 #include "engine/io/xdmf_writer.hpp"
@@ -31,7 +40,55 @@ Result<std::int64_t> stepsFor(std::int64_t scene, double dt, std::int64_t steps,
   return scene;
 }
 
+namespace {
+
+/// HDF5 itself can crash or loop forever on some damaged files (a variable-length string pointing at a heap
+/// object that is not there, a heap object of size zero). So a trajectory is first read in a child process
+/// under a time limit, silenced; the same reading is done here only when the child came through it.
+std::optional<Error> readsSafely(const std::string& path) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  const double seconds = 20.0 + (ec ? 0.0 : static_cast<double>(size) / 20e6);
+  std::fflush(nullptr);
+  const pid_t pid = fork();
+  if (pid < 0) return std::nullopt;  // no child to spare: read directly
+  if (pid == 0) {
+    const int devnull = ::open("/dev/null", O_WRONLY);
+    if (devnull >= 0) {
+      dup2(devnull, STDOUT_FILENO);
+      dup2(devnull, STDERR_FILENO);
+    }
+    auto reader = H5mdReader::open(path);
+    if (reader) {
+      auto s = (*reader)->summary();
+      if (s && s->frames > 0) {
+        static_cast<void>((*reader)->positions(0));
+        static_cast<void>((*reader)->positions(s->frames - 1));
+      }
+    }
+    _exit(0);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  int status = 0;
+  while (waitpid(pid, &status, WNOHANG) == 0) {
+    if (std::chrono::steady_clock::now() > deadline) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      return Error{path, 0, 0, "reading it did not finish in " + std::to_string(static_cast<int>(seconds)) +
+                                   " s (the HDF5 library loops on it); the file is damaged"};
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  if (WIFSIGNALED(status))
+    return Error{path, 0, 0, "the HDF5 library crashed reading it (signal " + std::to_string(WTERMSIG(status)) +
+                                 "); the file is damaged"};
+  return std::nullopt;
+}
+
+}  // namespace
+
 int inspect(const std::string& path, bool json) {
+  if (const auto damaged = readsSafely(path)) return fail(*damaged);
   auto reader = H5mdReader::open(path);
   if (!reader) return fail(reader.error());
   auto sum = (*reader)->summary();
@@ -75,6 +132,7 @@ int inspect(const std::string& path, bool json) {
 }
 
 int xdmf(const std::string& path) {
+  if (const auto damaged = readsSafely(path)) return fail(*damaged);
   auto reader = H5mdReader::open(path);
   if (!reader) return fail(reader.error());
   auto sum = (*reader)->summary();

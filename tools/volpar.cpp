@@ -68,6 +68,13 @@ int main(int argc, char** argv) {
   runCmd->add_flag("--json", run.json, "Print one JSON object with the summary on stdout");
   runCmd->add_option("--threads", run.threads, "Worker threads for the step (default 1; the results are the same)")
       ->check(wholeNumber(1, 256));
+  const auto limits = [](CLI::App* cmd, std::vector<std::string>& dirs, double& gib) {
+    cmd->add_option("--allow-dir", dirs, "A folder the scene's mesh files may lie in besides the scene's own (repeatable)")
+        ->check(CLI::ExistingDirectory);
+    cmd->add_option("--memory-limit", gib, "Refuse a scene estimated to need more memory [GiB] (default: 80 % of this machine's)")
+        ->check(positiveFinite());
+  };
+  limits(runCmd, run.allowDirs, run.memoryLimitGiB);
   // testing aid, not shown in --help
   runCmd->add_option("--kill-after-frames", run.killAfterFrames)->group("")->check(wholeNumber(0, kMaxSteps));
 
@@ -83,6 +90,7 @@ int main(int argc, char** argv) {
   checkCmd->add_option("--details", check.details, "How many mismatches to describe (default 10)")
       ->check(wholeNumber(0, 1000000));
   checkCmd->add_flag("--json", check.json, "Print one JSON object with the report on stdout");
+  limits(checkCmd, check.allowDirs, check.memoryLimitGiB);
 
   std::string inspectPath;
   bool inspectJson = false;
@@ -95,6 +103,10 @@ int main(int argc, char** argv) {
   xdmfCmd->add_option("file", xdmfPath, "Trajectory (.h5)")->required()->check(CLI::ExistingFile);
 
   // every command-line error exits with status 1 (help and version with 0)
+  if (argc > 1 && argv[1][0] != '-' && app.get_subcommands([&](const CLI::App* sub) { return sub->get_name() == argv[1]; }).empty()) {
+    std::fprintf(stderr, "volpar: error: unknown command '%s'; expected run, check, inspect or xdmf\nRun with --help for more information.\n", argv[1]);
+    return 1;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -8,6 +8,9 @@
 #include <sstream>
 #include <string_view>
 
+#include "engine/core/input_file.hpp"
+#include "engine/core/limits.hpp"
+
 namespace volpar {
 
 namespace {
@@ -68,8 +71,11 @@ Result<TriangleMesh> parseObj(const std::string& text, const std::string& source
       Vec3 v;
       for (int k = 0; k < 3; ++k) {
         if (!parseDouble(tokens[1 + k].text, v[k]))
+          return fail(lineNo, tokens[1 + k].column, "expected a finite number for a vertex coordinate");
+        if (!(std::abs(v[k] * scale) <= kMaxLength))
           return fail(lineNo, tokens[1 + k].column,
-                      "expected a finite number for a vertex coordinate, got '" + std::string(tokens[1 + k].text) + "'");
+                      "vertex coordinate (times the scale " + std::to_string(scale) + ") beyond " +
+                          std::to_string(static_cast<long long>(kMaxLength)) + " m; expected coordinates within it");
       }
       raw.push_back(v * scale);
     } else if (key == "f") {
@@ -80,9 +86,7 @@ Result<TriangleMesh> parseObj(const std::string& text, const std::string& source
         const std::string_view first = t.substr(0, t.find('/'));
         long idx = 0;
         if (!parseInt(first, idx) || idx == 0)
-          return fail(lineNo, tokens[k].column,
-                      "expected a vertex index (non-zero integer, optionally '/texture/normal'), got '" + std::string(t) +
-                          "'");
+          return fail(lineNo, tokens[k].column, "expected a vertex index (non-zero integer, optionally '/texture/normal')");
         // negative indices count back from the vertices read so far
         if (idx < 0) idx = static_cast<long>(raw.size()) + idx + 1;
         if (idx < 1) return fail(lineNo, tokens[k].column, "relative vertex index points before the first vertex");
@@ -93,9 +97,9 @@ Result<TriangleMesh> parseObj(const std::string& text, const std::string& source
                key == "usemtl" || key == "mtllib") {
       continue;
     } else {
+      // (what the line holds is not repeated: a file that is not a mesh may be anything)
       return fail(lineNo, tokens[0].column,
-                  "unknown OBJ statement '" + std::string(key) +
-                      "'; expected v or f (vn, vt, vp, o, g, s, l, usemtl and mtllib are ignored)");
+                  "not an OBJ statement; expected v or f (vn, vt, vp, o, g, s, l, usemtl and mtllib are ignored)");
     }
   }
   if (faces.empty()) return fail(0, 0, "no faces found; expected a closed triangle mesh ('f' statements)");
@@ -130,11 +134,9 @@ Result<TriangleMesh> parseObj(const std::string& text, const std::string& source
 }
 
 Result<TriangleMesh> readObj(const std::string& path, double scale) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) return Error{path, 0, 0, "cannot open mesh file"};
-  std::ostringstream text;
-  text << file.rdbuf();
-  return parseObj(text.str(), path, scale);
+  auto text = readInputFile(path, kMaxMeshFileBytes, "mesh file");
+  if (!text) return text.error();
+  return parseObj(*text, path, scale);
 }
 
 }  // namespace volpar

@@ -559,6 +559,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
                                                        const TrajectoryMeta& meta) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are reported through Result, not printed by HDF5
   auto impl = std::make_unique<Impl>();
+  const std::string creating = path + ".creating";
   try {
     // The metadata cache (chunk indices of ~80 growing datasets) is held to a few MiB: by default it may grow
     // to 32 MiB over a long run, and a run's memory should stay flat (docs/hardening.md, soak).
@@ -571,7 +572,9 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     mdc.max_size = std::size_t{4} << 20;
     mdc.min_size = std::min(mdc.min_size, mdc.initial_size);
     check(H5Pset_mdc_config(fapl.get(), &mdc), "metadata cache settings");
-    impl->file = checked(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose, "create file");
+    // The file is made under a temporary name and takes its own only once its structure is on disk: a run
+    // killed while creating it leaves no file of that name that HDF5 could not open.
+    impl->file = checked(H5Fcreate(creating.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose, "create file");
     const hid_t f = impl->file.get();
     const ParticleStore& p = world.particles();
     const BodyStore& b = world.bodies();
@@ -684,7 +687,13 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     }
     impl->bodyIndex.resize(p.size());
     check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+    std::error_code ec;
+    std::filesystem::rename(creating, path, ec);  // (HDF5 goes on writing through its open descriptor)
+    if (ec) throw H5Failure{"rename " + creating + ": " + ec.message()};
   } catch (const H5Failure& e) {
+    impl.reset();
+    std::error_code ignored;
+    std::filesystem::remove(creating, ignored);
     return Error{path, 0, 0, "cannot write trajectory (" + e.what + ")"};
   }
   return std::unique_ptr<H5mdWriter>(new H5mdWriter(std::move(impl), path, world.particles().size()));

@@ -1,8 +1,14 @@
 #include "engine/scene/scene_build.hpp"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <memory>
+#include <numbers>
 #include <sstream>
 
 #include "engine/builders/obj_reader.hpp"
@@ -57,7 +63,87 @@ std::string instanceName(const BodyDesc& b, int i, int j, int k) {
   return b.name + "[" + std::to_string(i) + "," + std::to_string(j) + "," + std::to_string(k) + "]";
 }
 
+/// Particles within `reach` of one particle, in a region of `count` particles at `cellVolume` each.
+double neighbours(double count, double reach, double cellVolume) {
+  const double ball = 4.0 / 3.0 * std::numbers::pi * reach * reach * reach;
+  return std::min(std::max(count - 1.0, 0.0), ball / cellVolume);
+}
+
+std::string gib(double bytes) {
+  std::ostringstream s;
+  s.precision(3);
+  s << bytes / double(std::uint64_t{1} << 30) << " GiB";
+  return s.str();
+}
+
 }  // namespace
+
+std::uint64_t defaultMemoryLimit() {
+  double total = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * static_cast<double>(sysconf(_SC_PAGE_SIZE));
+  // a container's share (cgroup v2) and the process's address-space limit, where smaller
+  if (std::ifstream cg("/sys/fs/cgroup/memory.max"); cg) {
+    double v = 0.0;
+    if (cg >> v && v > 0.0) total = std::min(total, v);
+  }
+  struct rlimit as {};
+  if (getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) total = std::min(total, static_cast<double>(as.rlim_cur));
+  return total > 0.0 ? static_cast<std::uint64_t>(0.8 * total) : std::uint64_t{1} << 32;
+}
+
+Result<SceneEstimate> estimateScene(const SceneDesc& desc) {
+  SceneEstimate total;
+  double mostBytes = -1.0;
+  for (const BodyDesc& body : desc.bodies) {
+    double particles = 0.0, connectors = 0.0;
+    if (const auto* list = std::get_if<ParticlesDesc>(&body.shape)) {
+      particles = static_cast<double>(list->positions.size());
+      if (list->explicitConnectors) {
+        connectors = static_cast<double>(list->connectors.size());
+      } else {
+        const double largest = list->radii.empty() ? 0.0 : *std::max_element(list->radii.begin(), list->radii.end());
+        const double reach = list->reach > 0.0 ? list->reach : 3.0 * largest;
+        Eigen::AlignedBox3d box;
+        for (const Vec3& p : list->positions) box.extend(p);
+        const Vec3 extent = box.sizes().array() + reach;
+        connectors = 0.5 * particles * neighbours(particles, reach, extent.prod() / particles);
+      }
+    } else {
+      double volume = 0.0;
+      std::string what;
+      if (const auto* mesh = std::get_if<MeshDesc>(&body.shape)) {
+        auto m = readObj(mesh->path, mesh->scale);
+        if (!m) return at(desc, body.mark, "body '" + body.name + "': " + m.error().toString());
+        volume = std::abs(m->volume());
+        what = "mesh " + mesh->file;
+      } else {
+        const auto shape = primitive(body.shape);
+        volume = shape->volume();
+        what = shape->describe();
+      }
+      const double s = body.fill.spacing > 0.0 ? body.fill.spacing : 2.0 * body.fill.radius;
+      const double cell = latticeCellVolume(body.fill.lattice, s);
+      particles = volume / cell;
+      connectors = 0.5 * particles * neighbours(particles, body.fill.reach * s, cell);
+      if (!(particles < static_cast<double>(kMaxSceneParticles)))
+        return at(desc, body.mark,
+                  "body '" + body.name + "': filling the " + what + " with particles of radius " + format(body.fill.radius) +
+                      " m would create about " + format(particles) + " particles; expected at most " +
+                      std::to_string(kMaxSceneParticles) + " (use a larger radius)");
+    }
+    const auto& c = body.repeat.count;
+    const double copies = static_cast<double>(c[0]) * c[1] * c[2];
+    total.particles += copies * particles;
+    total.connectors += copies * connectors;
+    total.bodies += copies;
+    const double bytes = copies * (particles * kBytesPerParticle + connectors * kBytesPerConnector);
+    if (bytes > mostBytes) {
+      mostBytes = bytes;
+      total.largest = body.mark;
+    }
+  }
+  total.bytes = total.particles * kBytesPerParticle + total.connectors * kBytesPerConnector + total.bodies * kBytesPerBody;
+  return total;
+}
 
 Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body, SourceShape* source) {
   const bool estimated = desc.normalsOf(body) == SurfaceNormals::Estimated;
@@ -104,7 +190,20 @@ Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body, So
   return cloud;
 }
 
-Result<BuiltScene> buildScene(const SceneDesc& desc) {
+Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options) {
+  // what the scene will need, before anything is allocated for it
+  const auto estimate = estimateScene(desc);
+  if (!estimate) return estimate.error();
+  const std::uint64_t limit = options.memoryLimit > 0 ? options.memoryLimit : defaultMemoryLimit();
+  if (!(estimate->bytes <= static_cast<double>(limit))) {
+    std::ostringstream m;
+    m.precision(3);
+    m << "the scene (this body the most) needs about " << gib(estimate->bytes) << " of memory (" << estimate->particles << " particles, "
+      << estimate->connectors << " connectors, " << estimate->bodies << " bodies); the limit is " << gib(double(limit))
+      << (options.memoryLimit > 0 ? " (--memory-limit)" : " (80 % of this machine's memory)")
+      << "; expected a smaller scene (larger particles, a smaller reach), or a higher --memory-limit";
+    return at(desc, estimate->largest, m.str());
+  }
   WorldSettings settings;
   settings.dt = desc.dt;
   settings.gravity = desc.gravity;

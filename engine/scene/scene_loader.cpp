@@ -6,13 +6,20 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <sstream>
+
+#include "engine/core/input_file.hpp"
+#include "engine/core/limits.hpp"
 
 namespace volpar {
 
 namespace {
+
+constexpr double kAnyFinite = std::numeric_limits<double>::max();
 
 // ---------------------------------------------------------------------------------------------
 // error plumbing: the loader throws LoadError internally; parseScene turns it into a Result.
@@ -54,7 +61,10 @@ std::string suggestion(const std::string& key, const std::vector<std::string>& a
 
 class Ctx {
  public:
-  explicit Ctx(std::string path) : path_(std::move(path)) {}
+  explicit Ctx(std::string path, std::vector<std::filesystem::path> roots = {})
+      : path_(std::move(path)), roots_(std::move(roots)) {}
+  /// The folders files the scene names must lie in (resolved, links followed).
+  [[nodiscard]] const std::vector<std::filesystem::path>& roots() const { return roots_; }
   [[noreturn]] void fail(const YAML::Mark& m, const std::string& message) const {
     const bool known = !m.is_null();
     throw LoadError{Error{path_, known ? m.line + 1 : 0, known ? m.column + 1 : 0, message}};
@@ -63,7 +73,96 @@ class Ctx {
 
  private:
   std::string path_;
+  std::vector<std::filesystem::path> roots_;
 };
+
+/// Whether `file` (resolved) lies inside folder `root` (resolved).
+bool inside(const std::filesystem::path& file, const std::filesystem::path& root) {
+  auto f = file.begin();
+  for (auto r = root.begin(); r != root.end(); ++r, ++f) {
+    if (r->empty()) continue;  // a trailing separator
+    if (f == file.end() || *f != *r) return false;
+  }
+  return true;
+}
+
+/// Where `text` is not UTF-8 (names and the scene's text are stored as UTF-8 strings in trajectories).
+std::optional<Error> notUtf8(const std::string& text, const std::string& path) {
+  int line = 1, column = 1;
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    std::size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+    bool ok = n > 0 && i + n <= text.size() && c != 0xC0 && c != 0xC1 && c < 0xF5;
+    for (std::size_t k = 1; ok && k < n; ++k) ok = (static_cast<unsigned char>(text[i + k]) >> 6) == 0x2;
+    if (!ok) return Error{path, line, column, "not valid UTF-8; expected a UTF-8 (or plain ASCII) scene file"};
+    if (c == '\n') {
+      ++line;
+      column = 1;
+    } else {
+      ++column;
+    }
+    i += n;
+  }
+  return std::nullopt;
+}
+
+/// Refuses text nested deeper than kMaxSceneNesting (flow brackets, block indentation levels, "- - -")
+/// before the YAML parser recurses into it. A scan, not a parse: quotes and comments are followed closely
+/// enough for any scene.
+std::optional<Error> tooDeep(const std::string& text, const std::string& path) {
+  std::vector<std::size_t> indents;  // open block levels
+  int flow = 0, line = 1, column = 0;
+  std::size_t indent = 0;
+  bool lineStart = true, comment = false, escaped = false;
+  char quote = 0, previous = '\n';
+  const auto deeper = [&] {
+    return Error{path, line, column, "lists and maps nested deeper than " + std::to_string(kMaxSceneNesting) +
+                                         " levels; expected a scene (it needs about six)"};
+  };
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '\n') {
+      ++line;
+      column = 0;
+      indent = 0;
+      lineStart = quote == 0 && flow == 0;
+      comment = false;
+      previous = c;
+      continue;
+    }
+    ++column;
+    if (comment) continue;
+    if (quote) {
+      if (quote == '"' && c == '\\' && !escaped) escaped = true;
+      else if (c == quote && !escaped) quote = 0;
+      else escaped = false;
+      continue;
+    }
+    if (lineStart) {
+      if (c == ' ') {
+        ++indent;
+        continue;
+      }
+      lineStart = false;
+      if (c != '#' && c != '\r') {
+        while (!indents.empty() && indents.back() >= indent) indents.pop_back();
+        indents.push_back(indent);
+        // compact nesting: "- - - x" opens a level per dash
+        for (std::size_t k = i; k + 1 < text.size() && text[k] == '-' && text[k + 1] == ' '; k += 2) indents.push_back(indent + (k - i) + 2);
+        if (indents.size() > static_cast<std::size_t>(kMaxSceneNesting)) return deeper();
+      }
+    }
+    const bool scalarStart = previous == '\n' || previous == ' ' || previous == '\t' || previous == '[' || previous == '{' ||
+                             previous == ',' || previous == ':' || previous == '-';
+    if (c == '#' && (previous == ' ' || previous == '\t' || previous == '\n')) comment = true;
+    else if ((c == '"' || c == '\'') && scalarStart) quote = c;
+    else if (c == '[' || c == '{') {
+      if (++flow + static_cast<int>(indents.size()) > kMaxSceneNesting) return deeper();
+    } else if ((c == ']' || c == '}') && flow > 0) --flow;
+    previous = c;
+  }
+  return std::nullopt;
+}
 
 std::string describe(const YAML::Node& n) {
   switch (n.Type()) {
@@ -131,15 +230,27 @@ double number(const Ctx& ctx, const YAML::Node& n, const std::string& what) {
   return v;
 }
 
+/// Lengths (sizes, radii, positions) are at most kMaxLength: beyond it particle grids and contact sums lose
+/// their meaning long before they overflow.
+void checkLength(const Ctx& ctx, const YAML::Node& n, double v, const std::string& what, const std::string& unit) {
+  if (unit == "m" && !(std::abs(v) <= kMaxLength)) {
+    std::ostringstream m;
+    m << "expected " << what << " of at most " << kMaxLength << " m in magnitude, got " << n.Scalar();
+    ctx.fail(n.Mark(), m.str());
+  }
+}
+
 double positive(const Ctx& ctx, const YAML::Node& n, const std::string& what, const std::string& unit) {
   const double v = number(ctx, n, what);
   if (!(v > 0.0)) ctx.fail(n.Mark(), "expected a positive " + what + " [" + unit + "], got " + n.Scalar());
+  checkLength(ctx, n, v, what, unit);
   return v;
 }
 
 double nonNegative(const Ctx& ctx, const YAML::Node& n, const std::string& what, const std::string& unit) {
   const double v = number(ctx, n, what);
   if (!(v >= 0.0)) ctx.fail(n.Mark(), "expected a non-negative " + what + " [" + unit + "], got " + n.Scalar());
+  checkLength(ctx, n, v, what, unit);
   return v;
 }
 
@@ -171,10 +282,30 @@ bool boolean(const Ctx& ctx, const YAML::Node& n, const std::string& what) {
   ctx.fail(n.Mark(), "expected true or false for " + what + ", got " + describe(n));
 }
 
-Vec3 vec3(const Ctx& ctx, const YAML::Node& n, const std::string& what) {
+/// Three numbers, each at most `limit` in magnitude (`unit` names it in messages).
+Vec3 vec3(const Ctx& ctx, const YAML::Node& n, const std::string& what, double limit = kMaxLength,
+          const char* unit = "m") {
   if (!n.IsSequence() || n.size() != 3)
     ctx.fail(n.Mark(), "expected a list of 3 numbers [x, y, z] for " + what + ", got " + describe(n));
-  return {number(ctx, n[0], what), number(ctx, n[1], what), number(ctx, n[2], what)};
+  const Vec3 v(number(ctx, n[0], what), number(ctx, n[1], what), number(ctx, n[2], what));
+  for (int k = 0; k < 3; ++k)
+    if (!(std::abs(v[k]) <= limit)) {
+      std::ostringstream m;
+      m << "expected components of " << what << " of at most " << limit << " " << unit << " in magnitude, got "
+        << n[k].Scalar();
+      ctx.fail(n[k].Mark(), m.str());
+    }
+  return v;
+}
+
+/// A direction given by any finite, non-zero components (however large or small): scaled by its largest
+/// component before normalising, so that its length neither overflows nor underflows.
+template <class V>
+std::optional<V> unitDirection(V v) {
+  const double largest = v.cwiseAbs().maxCoeff();
+  if (!(largest > 0.0)) return std::nullopt;
+  v /= largest;
+  return v.normalized();
 }
 
 Vec3 positiveVec3(const Ctx& ctx, const YAML::Node& n, const std::string& what, const std::string& unit) {
@@ -198,13 +329,13 @@ std::string oneOf(const Ctx& ctx, const YAML::Node& n, const std::string& what, 
 std::pair<Vec3, double> axisAngle(const Ctx& ctx, const YAML::Node& n, const std::string& what) {
   const MapReader m(ctx, n, what, {"axis", "angle", "angle_deg"});
   const YAML::Node axisNode = m.require("axis");
-  const Vec3 axis = vec3(ctx, axisNode, "rotation axis");
-  if (!(axis.norm() > 1e-12)) ctx.fail(axisNode.Mark(), "expected a non-zero rotation axis, got a zero-length vector");
+  const auto axis = unitDirection(vec3(ctx, axisNode, "rotation axis", kAnyFinite, ""));
+  if (!axis) ctx.fail(axisNode.Mark(), "expected a non-zero rotation axis, got a zero-length vector");
   if (m.has("angle") == m.has("angle_deg"))
     ctx.fail(m.mark(), "expected exactly one of 'angle' [rad] or 'angle_deg' [deg] in " + what);
   const double angle = m.has("angle") ? number(ctx, m.get("angle"), "angle")
                                       : number(ctx, m.get("angle_deg"), "angle_deg") * std::numbers::pi / 180.0;
-  return {axis.normalized(), angle};
+  return {*axis, angle};
 }
 
 Quat rotation(const Ctx& ctx, const YAML::Node& n) {
@@ -214,10 +345,11 @@ Quat rotation(const Ctx& ctx, const YAML::Node& n) {
     const YAML::Node q = m.get("quaternion");
     if (!q.IsSequence() || q.size() != 4)
       ctx.fail(q.Mark(), "expected a quaternion [w, x, y, z] of 4 numbers, got " + describe(q));
-    Quat r(number(ctx, q[0], "quaternion"), number(ctx, q[1], "quaternion"), number(ctx, q[2], "quaternion"),
-           number(ctx, q[3], "quaternion"));
-    if (!(r.norm() > 1e-12)) ctx.fail(q.Mark(), "expected a non-zero quaternion [w, x, y, z]");
-    return r.normalized();
+    const Eigen::Vector4d wxyz(number(ctx, q[0], "quaternion"), number(ctx, q[1], "quaternion"),
+                               number(ctx, q[2], "quaternion"), number(ctx, q[3], "quaternion"));
+    const auto unit = unitDirection(wxyz);
+    if (!unit) ctx.fail(q.Mark(), "expected a non-zero quaternion [w, x, y, z]");
+    return Quat((*unit)[0], (*unit)[1], (*unit)[2], (*unit)[3]);
   }
   const auto [axis, angle] = axisAngle(ctx, n, "orientation");
   return Quat(Eigen::AngleAxisd(angle, axis));
@@ -252,11 +384,14 @@ PlaneDesc plane(const Ctx& ctx, const YAML::Node& n) {
   PlaneDesc p;
   p.mark = {n.Mark().line + 1, n.Mark().column + 1};
   const YAML::Node nn = m.require("normal");
-  const Vec3 normal = vec3(ctx, nn, "plane normal");
-  if (!(normal.norm() > 1e-12)) ctx.fail(nn.Mark(), "expected a non-zero plane normal");
-  p.normal = normal.normalized();
+  const auto normal = unitDirection(vec3(ctx, nn, "plane normal", kAnyFinite, ""));
+  if (!normal) ctx.fail(nn.Mark(), "expected a non-zero plane normal");
+  p.normal = *normal;
   if (m.has("offset") && m.has("point")) ctx.fail(m.mark(), "expected either 'offset' or 'point' for a plane, not both");
-  if (m.has("offset")) p.offset = number(ctx, m.get("offset"), "plane offset");
+  if (m.has("offset")) {
+    p.offset = number(ctx, m.get("offset"), "plane offset");
+    checkLength(ctx, m.get("offset"), p.offset, "plane offset", "m");
+  }
   if (m.has("point")) p.offset = p.normal.dot(vec3(ctx, m.get("point"), "plane point"));
   if (m.has("material")) p.material = text(ctx, m.get("material"), "material");
   return p;
@@ -296,6 +431,15 @@ ShapeDesc shape(const Ctx& ctx, const YAML::Node& n, const std::filesystem::path
     if (!std::filesystem::is_regular_file(p, ec))
       ctx.fail(fileNode.Mark(), "cannot open mesh file '" + d.file + "' (looked for " + d.path +
                                     "); expected a path to an OBJ file, relative to the scene file");
+    // confinement: a scene reads files in its own folder (or folders the command line allows), whatever
+    // its paths say and wherever links point
+    const std::filesystem::path resolved = std::filesystem::canonical(p, ec);
+    bool allowed = false;
+    for (const std::filesystem::path& root : ctx.roots()) allowed = allowed || (!ec && inside(resolved, root));
+    if (!allowed)
+      ctx.fail(fileNode.Mark(), "mesh file '" + d.file + "' resolves to " + resolved.string() +
+                                    ", outside the scene's folder; expected a file inside it (or in a folder given "
+                                    "with --allow-dir)");
     if (me.has("scale")) d.scale = positive(ctx, me.get("scale"), "mesh scale", "-");
     return d;
   }
@@ -436,8 +580,9 @@ BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std:
   if (m.has("particle_mass")) b.particleMass = positive(ctx, m.get("particle_mass"), "particle mass", "kg");
   if (m.has("position")) b.position = vec3(ctx, m.get("position"), "position");
   if (m.has("orientation")) b.orientation = orientation(ctx, m.get("orientation"));
-  if (m.has("velocity")) b.velocity = vec3(ctx, m.get("velocity"), "velocity");
-  if (m.has("angular_velocity")) b.angularVelocity = vec3(ctx, m.get("angular_velocity"), "angular velocity");
+  if (m.has("velocity")) b.velocity = vec3(ctx, m.get("velocity"), "velocity", kMaxSpeed, "m/s");
+  if (m.has("angular_velocity"))
+    b.angularVelocity = vec3(ctx, m.get("angular_velocity"), "angular velocity", kMaxSpeed, "rad/s");
   if (m.has("repeat")) b.repeat = repeat(ctx, m.get("repeat"));
   if (m.has("pin")) {
     if (b.kind != BodyKind::Deformable) ctx.fail(m.keyMark("pin"), "only deformable bodies can have pinned particles");
@@ -479,7 +624,7 @@ SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::p
     s.duration = positive(ctx, d, "duration", "s");
     if (*s.duration / s.dt > 1e12) ctx.fail(d.Mark(), "duration / dt exceeds 1e12 steps");
   }
-  if (m.has("gravity")) s.gravity = vec3(ctx, m.get("gravity"), "gravity");
+  if (m.has("gravity")) s.gravity = vec3(ctx, m.get("gravity"), "gravity", kMaxSpeed, "m/s^2");
   if (m.has("solver")) {
     const MapReader sm(ctx, m.get("solver"), "solver", {"iterations", "substeps", "raw_normals"});
     if (sm.has("raw_normals")) s.rawNormals = boolean(ctx, sm.get("raw_normals"), "raw_normals");
@@ -541,8 +686,23 @@ SurfaceNormals SceneDesc::normalsOf(const BodyDesc& body) const {
   return body.normals.value_or(normals);
 }
 
-Result<SceneDesc> parseScene(const std::string& sceneText, const std::string& path) {
-  const Ctx ctx(path);
+Result<SceneDesc> parseScene(const std::string& sceneText, const std::string& path, const LoadOptions& options) {
+  namespace fs = std::filesystem;
+  std::vector<fs::path> roots;
+  for (const std::string& dir : options.allowedDirs) {
+    std::error_code ec;
+    const fs::path r = fs::canonical(fs::path(dir.empty() ? "." : dir), ec);
+    if (!ec) roots.push_back(r);
+  }
+  {
+    std::error_code ec;
+    const fs::path own = fs::path(path).parent_path();
+    const fs::path r = fs::canonical(own.empty() ? fs::path(".") : own, ec);
+    if (!ec) roots.push_back(r);
+  }
+  const Ctx ctx(path, std::move(roots));
+  if (auto bad = notUtf8(sceneText, path)) return *bad;
+  if (auto deep = tooDeep(sceneText, path)) return *deep;
   try {
     YAML::Node root;
     try {
@@ -564,12 +724,10 @@ Result<SceneDesc> parseScene(const std::string& sceneText, const std::string& pa
   }
 }
 
-Result<SceneDesc> loadScene(const std::string& path) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) return Error{path, 0, 0, "cannot open scene file"};
-  std::ostringstream text;
-  text << file.rdbuf();
-  return parseScene(text.str(), path);
+Result<SceneDesc> loadScene(const std::string& path, const LoadOptions& options) {
+  auto text = readInputFile(path, kMaxSceneFileBytes, "scene file");
+  if (!text) return text.error();
+  return parseScene(*text, path, options);
 }
 
 }  // namespace volpar

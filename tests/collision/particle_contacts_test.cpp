@@ -31,7 +31,7 @@ ParticleCloud fill(const SolidShape& shape, Lattice lattice, double r) {
 }
 
 std::vector<ShapeCase> shapes() {
-  auto mesh = readObj(test::sourcePath("scenes/meshes/l_shape.obj"));
+  auto mesh = readObj(test::sourcePath("scenes/examples/meshes/l_shape.obj"));
   EXPECT_TRUE(mesh.ok() && mesh->makeSolid().ok());
   auto bound = [](const ParticleCloud& c) {
     double r = 0;

@@ -23,7 +23,7 @@ ParticleCloud boxCloud(const Vec3& size, double r = 0.05, Lattice lattice = Latt
 }
 
 ParticleCloud meshCloud(const std::string& file, double r) {
-  auto m = readObj(test::sourcePath("scenes/meshes/" + file));
+  auto m = readObj(test::sourcePath("scenes/examples/meshes/" + file));
   EXPECT_TRUE(m.ok() && m->makeSolid().ok());
   auto c = fillShape(MeshShape(std::make_shared<const TriangleMesh>(m.value())), {Lattice::Cubic, r});
   EXPECT_TRUE(c.ok());

@@ -218,7 +218,7 @@ TEST(CapsuleFill, MassAndAxisInertia) {
 }
 
 TEST(MeshFill, LShapeMatchesAnalyticMassAndCentre) {
-  auto mesh = readObj(test::sourcePath("scenes/meshes/l_shape.obj"));
+  auto mesh = readObj(test::sourcePath("scenes/examples/meshes/l_shape.obj"));
   ASSERT_TRUE(mesh.ok()) << mesh.error().toString();
   ASSERT_TRUE(mesh->makeSolid().ok());
   EXPECT_NEAR(mesh->volume(), 0.04, 1e-12);

@@ -154,7 +154,7 @@ TEST(Cli, OptionErrorsNameTheOptionAndExitWithOne) {
 TEST(Cli, OutputOverAnInputIsRefused) {
   const std::string dir = test::tempDir();
   std::filesystem::create_directories(dir + "/meshes");
-  std::filesystem::copy_file(test::sourcePath("scenes/meshes/l_shape.obj"), dir + "/meshes/l.obj");
+  std::filesystem::copy_file(test::sourcePath("scenes/examples/meshes/l_shape.obj"), dir + "/meshes/l.obj");
   const std::string scene = writeFile(dir + "/s.yaml", std::string(kFall) +
                                                            "  - shape: {mesh: {file: meshes/l.obj}}\n"
                                                            "    fill: {radius: 0.1}\n    position: [5, 0, 0]\n");

@@ -102,11 +102,14 @@ TEST(ObjReader, SyntaxErrorsGiveLineAndColumn) {
     const char* message;
   };
   const Case cases[] = {
-      {"v 0 0 0\nv 1 x 0\n", 2, 5, "expected a finite number for a vertex coordinate, got 'x'"},
+      {"v 0 0 0\nv 1 x 0\n", 2, 5, "expected a finite number for a vertex coordinate"},
+      {"v 0 0 0\nv 1 2e6 0\n", 2, 5, "vertex coordinate (times the scale 1.000000) beyond 1000000 m"},
       {"v 0 0\n", 1, 1, "expected a vertex 'v x y z' with 3 coordinates"},
       {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", 4, 7, "vertex index 9 is out of range; the file has 3 vertices"},
       {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n", 4, 7, "expected a vertex index"},
-      {"v 0 0 0\n  curv 1 2\n", 2, 3, "unknown OBJ statement 'curv'"},
+      {"v 0 0 0\n  curv 1 2\n", 2, 3, "not an OBJ statement; expected v or f"},
+      // a file that is not a mesh: located, its content never repeated
+      {"root:x:0:0:secret:/root:/bin/bash\n", 1, 1, "not an OBJ statement"},
       {"v 0 0 0\nf 1 1\n", 2, 1, "expected a face with at least 3 vertices"},
       {"v 0 0 0\n", 0, 0, "no faces found"},
   };
@@ -116,6 +119,7 @@ TEST(ObjReader, SyntaxErrorsGiveLineAndColumn) {
     EXPECT_EQ(m.error().line, c.line) << c.text;
     EXPECT_EQ(m.error().column, c.column) << c.text;
     EXPECT_NE(m.error().message.find(c.message), std::string::npos) << m.error().message;
+    EXPECT_EQ(m.error().message.find("secret"), std::string::npos) << m.error().message;
   }
 }
 

@@ -3,6 +3,15 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "engine/builders/obj_reader.hpp"
+#include "engine/core/input_file.hpp"
+#include "engine/scene/scene_build.hpp"
+#include "engine/scene/scene_loader.hpp"
+
 #include "tests/support/test_support.hpp"
 
 namespace volpar {
@@ -183,6 +192,135 @@ TEST(SceneErrors, OpenMeshErrorAlsoNamesTheMeshLine) {
   ASSERT_FALSE(built.ok());
   EXPECT_NE(built.error().message.find("open_box.obj:"), std::string::npos) << built.error().message;
   EXPECT_NE(built.error().message.find("mesh is not closed"), std::string::npos) << built.error().message;
+}
+
+TEST(SceneErrors, DirectionsOfAnyFiniteSizeAreNormalisedNotLost) {
+  // components whose squares overflow (or underflow) still give the direction they point in
+  auto desc = test::sceneFromString(
+      "dt: 0.01\nsteps: 1\nplanes:\n  - {normal: [0, 1e-300, 1e-300], offset: -5}\nbodies:\n"
+      "  - name: q\n" + kBox + "    orientation: {quaternion: [1e300, 1e300, 0, 0]}\n"
+      "  - name: a\n" + kBox + "    position: [3, 0, 0]\n    orientation: {axis: [1e308, 1e308, 0], angle: 1}\n");
+  ASSERT_TRUE(desc.ok()) << desc.error().toString();
+  const double h = std::sqrt(0.5);
+  EXPECT_NEAR(desc->bodies[0].orientation.w(), h, 1e-15);
+  EXPECT_NEAR(desc->bodies[0].orientation.x(), h, 1e-15);
+  const Quat expected(Eigen::AngleAxisd(1.0, Vec3(h, h, 0.0)));
+  EXPECT_LT(desc->bodies[1].orientation.angularDistance(expected), 1e-14);
+  EXPECT_NEAR(desc->planes[0].normal.y(), h, 1e-15);
+  EXPECT_NEAR(desc->planes[0].normal.z(), h, 1e-15);
+}
+
+TEST(SceneErrors, ValuesBeyondTheLimitsAreRefusedWhereGiven) {
+  struct Bad {
+    std::string text, message;
+  };
+  const std::vector<Bad> bad = {
+      {"    position: [0, 0, 2e6]\n", "expected components of position of at most 1e+06 m"},
+      {"    velocity: [1e300, 0, 0]\n", "expected components of velocity of at most 1e+06 m/s"},
+      {"    angular_velocity: [0, 0, -1e7]\n", "of at most 1e+06 rad/s"},
+  };
+  for (const Bad& b : bad) {
+    auto desc = test::sceneFromString("dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n" + kBox + b.text);
+    ASSERT_FALSE(desc.ok()) << b.text;
+    EXPECT_EQ(desc.error().line, 7) << desc.error().toString();
+    EXPECT_NE(desc.error().message.find(b.message), std::string::npos) << desc.error().toString();
+  }
+  auto big = test::sceneFromString("dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n    shape: {box: {size: [3e6, 1, 1]}}\n"
+                                   "    fill: {radius: 0.1}\n");
+  ASSERT_FALSE(big.ok());
+  EXPECT_NE(big.error().message.find("box size of at most 1e+06 m"), std::string::npos) << big.error().toString();
+}
+
+TEST(SceneErrors, DeepNestingIsRefusedBeforeParsing) {
+  for (const std::string& text : {"a: " + std::string(5000, '[') + std::string(5000, ']') + "\n",
+                                  [] {
+                                    std::string t;
+                                    for (int i = 0; i < 200; ++i) t += std::string(static_cast<std::size_t>(i), ' ') + "k:\n";
+                                    return t;
+                                  }(),
+                                  "a:\n" + [] {
+                                    std::string t;
+                                    for (int i = 0; i < 100; ++i) t += "- ";
+                                    return t + "x\n";
+                                  }()}) {
+    auto desc = test::sceneFromString(text);
+    ASSERT_FALSE(desc.ok());
+    EXPECT_NE(desc.error().message.find("nested deeper than 64 levels"), std::string::npos) << desc.error().toString();
+    EXPECT_GE(desc.error().line, 1);
+  }
+  // a scene nested as scenes are is not affected: a list of lists of lists
+  auto ok = test::sceneFromString("dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n    shape: {particles: {positions: "
+                                  "[[0, 0, 0], [0.1, 0, 0]], radius: 0.05}}\n");
+  EXPECT_TRUE(ok.ok()) << ok.error().toString();
+}
+
+TEST(SceneErrors, MeshesOutsideTheScenesFolderAreRefusedUnlessAllowed) {
+  namespace fs = std::filesystem;
+  const std::string dir = test::tempDir();
+  fs::create_directories(dir + "/scene/inner");
+  fs::create_directories(dir + "/elsewhere");
+  fs::copy_file(test::sourcePath("scenes/examples/meshes/l_shape.obj"), dir + "/elsewhere/l.obj");
+  fs::copy_file(test::sourcePath("scenes/examples/meshes/l_shape.obj"), dir + "/scene/inner/l.obj");
+  fs::create_symlink(dir + "/elsewhere/l.obj", dir + "/scene/link.obj");
+  const auto load = [&](const std::string& file, const std::vector<std::string>& allowed) {
+    LoadOptions options;
+    options.allowedDirs = allowed;
+    return parseScene("dt: 0.01\nsteps: 1\nbodies:\n  - shape: {mesh: {file: " + file + "}}\n    fill: {radius: 0.1}\n",
+                      dir + "/scene/s.yaml", options);
+  };
+  EXPECT_TRUE(load("inner/l.obj", {}).ok());
+  EXPECT_TRUE(load("inner/../inner/l.obj", {}).ok());
+  for (const std::string& escape : {std::string("../elsewhere/l.obj"), std::string("link.obj"), dir + "/elsewhere/l.obj",
+                                    std::string("../../../../../../etc/passwd")}) {
+    auto refused = load(escape, {});
+    ASSERT_FALSE(refused.ok()) << escape;
+    EXPECT_NE(refused.error().message.find("outside the scene's folder"), std::string::npos) << refused.error().toString();
+    EXPECT_EQ(refused.error().line, 4);
+  }
+  // a folder given on the command line
+  EXPECT_TRUE(load("../elsewhere/l.obj", {dir + "/elsewhere"}).ok());
+  EXPECT_TRUE(load("link.obj", {dir + "/elsewhere"}).ok());
+  EXPECT_FALSE(load("../elsewhere/l.obj", {dir + "/scene/inner"}).ok());
+}
+
+TEST(SceneErrors, ScenesAndMeshesOverTheirSizeCapsOrNotFilesAreRefusedBeforeReading) {
+  const std::string dir = test::tempDir();
+  std::ofstream(dir + "/ten.txt") << "0123456789";
+  auto small = readInputFile(dir + "/ten.txt", 9, "scene file");
+  ASSERT_FALSE(small.ok());
+  EXPECT_NE(small.error().message.find("scene file of 10 bytes; expected at most 9 bytes"), std::string::npos);
+  EXPECT_TRUE(readInputFile(dir + "/ten.txt", 10, "scene file").ok());
+  for (const std::string& notAFile : {std::string("/dev/zero"), dir}) {
+    auto r = loadScene(notAFile);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find("not a regular file"), std::string::npos) << r.error().toString();
+    auto m = readObj(notAFile);
+    ASSERT_FALSE(m.ok());
+    EXPECT_NE(m.error().message.find("not a regular file"), std::string::npos) << m.error().toString();
+  }
+}
+
+TEST(SceneErrors, AScenePastTheMemoryLimitIsRefusedBeforeBuildingWithTheEstimate) {
+  // a particle list with a reach that joins every particle to every other: ~n^2/2 springs
+  std::string positions;
+  for (int i = 0; i < 2000; ++i) positions += (i ? ", [" : "[") + std::to_string(0.1 * i) + ", 0, 0]";
+  auto desc = test::sceneFromString("dt: 0.01\nsteps: 1\nbodies:\n  - name: small\n" + kBox +
+                                    "  - name: web\n    shape: {particles: {positions: [" + positions +
+                                    "], radius: 0.05, reach: 500}}\n    position: [0, 5, 0]\n");
+  ASSERT_TRUE(desc.ok()) << desc.error().toString();
+  const auto estimate = estimateScene(*desc);
+  ASSERT_TRUE(estimate.ok());
+  EXPECT_NEAR(estimate->connectors, 2000.0 * 1999.0 / 2.0 + 13.0 * 27.0, 0.05 * 2e6);
+  BuildOptions options;
+  options.memoryLimit = std::uint64_t{64} << 20;  // the web's ~2 million springs need ~130 MiB
+  auto built = buildScene(*desc, options);
+  ASSERT_FALSE(built.ok());
+  EXPECT_EQ(built.error().line, 7) << built.error().toString();  // the body that needs the most
+  EXPECT_NE(built.error().message.find("connectors"), std::string::npos) << built.error().toString();
+  EXPECT_NE(built.error().message.find("the limit is 0.0625 GiB (--memory-limit)"), std::string::npos)
+      << built.error().toString();
+  options.memoryLimit = std::uint64_t{1} << 30;
+  EXPECT_TRUE(buildScene(*desc, options).ok());
 }
 
 TEST(SceneErrors, IntendedOverlapIsAccepted) {

@@ -24,7 +24,10 @@ std::string tempDir() {
 }
 
 Result<SceneDesc> sceneFromString(const std::string& text, const std::string& name) {
-  return parseScene(text, sourcePath("scenes/" + name));
+  // (scenes here may use the test meshes too)
+  LoadOptions options;
+  options.allowedDirs = {sourcePath("tests/data")};
+  return parseScene(text, sourcePath("scenes/" + name), options);
 }
 
 World worldFromString(const std::string& text, const std::string& name) {

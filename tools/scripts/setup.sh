@@ -3,7 +3,13 @@
 # is missing), configures and builds, then runs the demo or the whole test suite.
 #
 #   tools/scripts/setup.sh demo   # Release build, runs scenes/examples/demo.yaml to build/demo.h5
-#   tools/scripts/setup.sh test   # RelWithDebInfo build with assertions, runs every test (ctest)
+#   tools/scripts/setup.sh test   # RelWithDebInfo build with assertions, runs every test (ctest), then the
+#                                 # hardening build (Clang, ASan + UBSan, libFuzzer) and its short fuzz runs
+#   tools/scripts/setup.sh fuzz [SECONDS] [scene|obj|trajectory ...]
+#                                 # hardening build, then each fuzzer (default: all three, one after the
+#                                 # other) for SECONDS (default 600) over build/hardening/fuzz/long/<name>/
+#                                 # corpus, seeded from fuzz/corpus/<name>/; prints executions, coverage and
+#                                 # findings (docs/hardening.md)
 #   tools/scripts/setup.sh bench [ARGS]  # Release build of pile_bench, runs pile-N against Bullet
 #                                        # (default: --n 125,1000 --repeats 3 --csv build/pile_bench.csv)
 #   tools/scripts/setup.sh deps   # packages only
@@ -19,6 +25,8 @@ packages=(
   libeigen3-dev libfcl-dev libccd-dev libhdf5-dev libyaml-cpp-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev libbullet-dev
   python3 python3-h5py python3-numpy hdf5-tools
+  # the hardening preset: Clang 14 and its runtimes (libFuzzer, AddressSanitizer, UBSan: libclang-rt-14-dev)
+  clang libclang-rt-dev
 )
 
 install_deps() {
@@ -40,6 +48,25 @@ install_deps() {
 build() {
   cmake --preset "$1"
   cmake --build --preset "$1"
+}
+
+# fuzz SECONDS [TARGET...]: each fuzzer of the hardening build for SECONDS (fuzz/run_fuzzer.py); status 1
+# when one has a finding in volpar code
+fuzz() {
+  local seconds=$1 target found=0
+  shift
+  local targets=("$@") extra
+  ((${#targets[@]})) || targets=(scene obj trajectory)
+  export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+  for target in "${targets[@]}"; do
+    [[ -x build/hardening/fuzz/${target}_fuzzer ]] || { echo "setup: no fuzzer '$target' (scene, obj, trajectory)" >&2; exit 2; }
+    extra=()
+    [[ $target == trajectory ]] && extra=(--third-party libhdf5)
+    echo "setup: fuzzing $target for $seconds s"
+    /usr/bin/python3 fuzz/run_fuzzer.py "build/hardening/fuzz/${target}_fuzzer" "fuzz/corpus/$target" \
+      "build/hardening/fuzz/long/$target" "$seconds" --dict "fuzz/$target.dict" --keep-going "${extra[@]}" || found=1
+  done
+  return "$found"
 }
 
 case "${1:-}" in
@@ -65,9 +92,20 @@ case "${1:-}" in
     install_deps
     build dev
     ctest --preset dev
+    build hardening
+    ctest --preset hardening
+    ;;
+  fuzz)
+    install_deps
+    shift
+    seconds=${1:-600}
+    (($# > 0)) && shift
+    [[ $seconds =~ ^[1-9][0-9]*$ ]] || { echo "setup: fuzz SECONDS must be a whole number above 0, got '$seconds'" >&2; exit 2; }
+    build hardening
+    fuzz "$seconds" "$@"
     ;;
   *)
-    echo "usage: $0 demo|test|bench [PILE_BENCH ARGS]|deps" >&2
+    echo "usage: $0 demo|test|bench [PILE_BENCH ARGS]|fuzz [SECONDS] [scene|obj|trajectory ...]|deps" >&2
     exit 2
     ;;
 esac
