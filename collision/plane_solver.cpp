@@ -1232,6 +1232,12 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
       }
     }
   }
+  // nothing was evaluated (one contact between interior particles whose centres coincide): the centre
+  // line's own margin, not the -infinity the search started from
+  if (!std::isfinite(bestEval.margin)) {
+    bestEval = evaluate(best);
+    ++stats.candidates;
+  }
   patch.normal = best;
   patch.source = bestSource;
   patch.margin = bestEval.margin;

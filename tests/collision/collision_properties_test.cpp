@@ -320,9 +320,9 @@ std::uint64_t seedOf(std::uint64_t property, std::size_t pair) { return 1000 * p
 
 bool finite(const Vec3& v) { return v.allFinite(); }
 
-/// `everyMargin`: every body-pair patch's margin is finite too; otherwise only validated patches' are (an
-/// unvalidated patch's margin need only be a number).
-std::string finiteCollisionOutput(const World& w, bool everyMargin) {
+/// Contacts and patches hold numbers only; every body-pair patch's margin is finite (a plane patch's is
+/// unbounded on the plane's side).
+std::string finiteCollisionOutput(const World& w) {
   std::ostringstream err;
   const ContactSet& cs = w.contacts();
   const PatchSet& ps = w.patches();
@@ -339,8 +339,7 @@ std::string finiteCollisionOutput(const World& w, bool everyMargin) {
     return "patch arrays do not match the contacts";
   for (const ContactPatch& patch : ps.patches) {
     const bool bodyPair = !patch.plane.valid();
-    const bool marginOk =
-        !std::isnan(patch.margin) && (!bodyPair || (!everyMargin && !patch.validated) || std::isfinite(patch.margin));
+    const bool marginOk = !std::isnan(patch.margin) && (!bodyPair || std::isfinite(patch.margin));
     const bool coreOk = patch.curvedSide < 0 || (finite(patch.core[0]) && finite(patch.core[1]));
     if (!finite(patch.normal) || !finite(patch.point) || !std::isfinite(patch.depth) || !marginOk || !coreOk) {
       err << "patch of contacts " << patch.first << "+" << patch.count << ": normal " << exact(patch.normal) << ", point "
@@ -705,12 +704,12 @@ TEST(CollisionProperties, OutputIsFiniteBeforeAndAfterAStep) {
   int steps = 0;
   overPoses("finite", 1, kFinitePoses, [&](const Solid& a, const Solid& b, const Pose& pose) -> std::string {
     World w = worldAB(a, b, pose);
-    if (std::string e = finiteCollisionOutput(w, true); !e.empty()) return "after detection: " + e;
+    if (std::string e = finiteCollisionOutput(w); !e.empty()) return "after detection: " + e;
     const StepStatus status = w.step();
     ++steps;
     if (std::string e = finiteState(w); !e.empty()) return "after a step: " + e;
     if (status != StepStatus::Ok) return "the step reports a non-finite state";
-    if (std::string e = finiteCollisionOutput(w, true); !e.empty()) return "after a step's detection: " + e;
+    if (std::string e = finiteCollisionOutput(w); !e.empty()) return "after a step's detection: " + e;
     return {};
   });
   EXPECT_EQ(steps, kFinitePoses * static_cast<int>(pairs().size()));
@@ -774,9 +773,9 @@ TEST(CollisionProperties, AlignedAndCoincidentPosesKeepEveryProperty) {
     const World ba = worldBA(a, b, pose);
     reference::FclWorldReference fcl;
     ++poses;
-    // (the margins of unvalidated patches are only required to be numbers here: a patch of one contact between
-    // interior particles whose centres coincide has no normal it could measure one along)
-    if (std::string e = finiteCollisionOutput(ab, false); !e.empty()) return ADD_FAILURE() << where << ":\n  " << e, false;
+    // (including a patch of one contact between interior particles whose centres coincide: its margin is the
+    // centre line's)
+    if (std::string e = finiteCollisionOutput(ab); !e.empty()) return ADD_FAILURE() << where << ":\n  " << e, false;
     if (std::string e = againstFcl(ab, fcl, fclTally); !e.empty()) return ADD_FAILURE() << where << ":\n  " << e, false;
     if (std::string e = patchInvariants(ab, patchTally); !e.empty()) return ADD_FAILURE() << where << ":\n  " << e, false;
     if (std::string e = mirrored(ab, ba, a.cloud.size(), b.cloud.size()); !e.empty())
@@ -784,7 +783,7 @@ TEST(CollisionProperties, AlignedAndCoincidentPosesKeepEveryProperty) {
     const StepStatus status = ab.step();
     if (std::string e = finiteState(ab); !e.empty()) return ADD_FAILURE() << where << ":\n  after a step: " << e, false;
     if (status != StepStatus::Ok) return ADD_FAILURE() << where << ":\n  the step reports a non-finite state", false;
-    if (std::string e = finiteCollisionOutput(ab, false); !e.empty())
+    if (std::string e = finiteCollisionOutput(ab); !e.empty())
       return ADD_FAILURE() << where << ":\n  after a step's detection: " << e, false;
     return true;
   };
