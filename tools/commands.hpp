@@ -1,13 +1,30 @@
 #pragma once
 // The volpar subcommands; main() in volpar.cpp parses the command line with CLI11.
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "engine/core/status.hpp"
+#include "engine/scene/scene_build.hpp"
+#include "engine/scene/scene_loader.hpp"
 
 namespace volpar::cli {
+
+/// What `run` and `check` allow a scene: folders besides its own that its meshes may lie in, and the memory
+/// it may be estimated to need.
+struct SceneLimits {
+  std::vector<std::string> allowDirs;
+  double memoryLimitGiB = 0.0;  ///< 0: 80 % of the machine's memory (defaultMemoryLimit)
+
+  [[nodiscard]] LoadOptions load() const { return LoadOptions{allowDirs}; }
+  [[nodiscard]] BuildOptions build() const {
+    BuildOptions b;
+    if (memoryLimitGiB > 0.0) b.memoryLimit = static_cast<std::uint64_t>(std::min(memoryLimitGiB * 1073741824.0, 1.8e19));
+    return b;
+  }
+};
 
 struct RunArgs {
   std::string scene;
@@ -19,8 +36,7 @@ struct RunArgs {
   bool json = false;
   int threads = 1;
   std::int64_t killAfterFrames = 0;
-  std::vector<std::string> allowDirs;  ///< folders besides the scene's that its meshes may lie in
-  double memoryLimitGiB = 0.0;         ///< 0: 80 % of the machine's memory
+  SceneLimits limits;
 };
 
 struct CheckArgs {
@@ -29,8 +45,7 @@ struct CheckArgs {
   double duration = 0.0;
   bool json = false;
   int details = 10;
-  std::vector<std::string> allowDirs;
-  double memoryLimitGiB = 0.0;
+  SceneLimits limits;
 };
 
 int run(const RunArgs& args);

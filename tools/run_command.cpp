@@ -57,13 +57,9 @@ std::optional<Error> refuseOverwrite(const std::string& output, const std::strin
 }  // namespace
 
 int run(const RunArgs& args) {
-  LoadOptions load;
-  load.allowedDirs = args.allowDirs;
-  auto desc = loadScene(args.scene, load);
+  auto desc = loadScene(args.scene, args.limits.load());
   if (!desc) return fail(desc.error());
-  BuildOptions build;
-  if (args.memoryLimitGiB > 0.0) build.memoryLimit = static_cast<std::uint64_t>(std::min(args.memoryLimitGiB * 1073741824.0, 1.8e19));
-  auto built = buildScene(*desc, build);
+  auto built = buildScene(*desc, args.limits.build());
   if (!built) return fail(built.error());
   World& world = built->world;
   world.setThreads(args.threads);

@@ -68,13 +68,13 @@ int main(int argc, char** argv) {
   runCmd->add_flag("--json", run.json, "Print one JSON object with the summary on stdout");
   runCmd->add_option("--threads", run.threads, "Worker threads for the step (default 1; the results are the same)")
       ->check(wholeNumber(1, 256));
-  const auto limits = [](CLI::App* cmd, std::vector<std::string>& dirs, double& gib) {
-    cmd->add_option("--allow-dir", dirs, "A folder the scene's mesh files may lie in besides the scene's own (repeatable)")
+  const auto limits = [](CLI::App* cmd, SceneLimits& l) {
+    cmd->add_option("--allow-dir", l.allowDirs, "A folder the scene's mesh files may lie in besides the scene's own (repeatable)")
         ->check(CLI::ExistingDirectory);
-    cmd->add_option("--memory-limit", gib, "Refuse a scene estimated to need more memory [GiB] (default: 80 % of this machine's)")
+    cmd->add_option("--memory-limit", l.memoryLimitGiB, "Refuse a scene estimated to need more memory [GiB] (default: 80 % of this machine's)")
         ->check(positiveFinite());
   };
-  limits(runCmd, run.allowDirs, run.memoryLimitGiB);
+  limits(runCmd, run.limits);
   // testing aid, not shown in --help
   runCmd->add_option("--kill-after-frames", run.killAfterFrames)->group("")->check(wholeNumber(0, kMaxSteps));
 
@@ -90,7 +90,7 @@ int main(int argc, char** argv) {
   checkCmd->add_option("--details", check.details, "How many mismatches to describe (default 10)")
       ->check(wholeNumber(0, 1000000));
   checkCmd->add_flag("--json", check.json, "Print one JSON object with the report on stdout");
-  limits(checkCmd, check.allowDirs, check.memoryLimitGiB);
+  limits(checkCmd, check.limits);
 
   std::string inspectPath;
   bool inspectJson = false;

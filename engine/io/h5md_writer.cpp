@@ -8,10 +8,10 @@
 #include <limits>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <set>
-#include <sstream>
 
+#include "engine/core/input_file.hpp"
+#include "engine/core/limits.hpp"
 #include "engine/core/version.hpp"
 #include "engine/io/xdmf_writer.hpp"
 
@@ -384,13 +384,6 @@ std::string kindName(BodyKind k) {
   return "unknown";
 }
 
-std::string readText(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
 }  // namespace
 
 /// Contacts of every frame as ragged arrays: frame t owns rows offset[t] .. offset[t] + count[t].
@@ -686,7 +679,9 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
           if (name.empty() || name[0] == '.') name = "file" + name;
           for (int k = 2; used.contains(name); ++k) name = std::filesystem::path(file).filename().string() + "_" + std::to_string(k);
           used.insert(name);
-          scalarString(files.get(), name, readText(file));
+          auto text = readInputFile(file, kMaxMeshFileBytes, "mesh file");
+          if (!text) throw H5Failure{"cannot store " + text.error().toString()};
+          scalarString(files.get(), name, *text);
         }
       }
     }

@@ -61,16 +61,7 @@ SweepShape sweepMesh(Lattice lattice, bool estimated) {
   const Quat turn = (Quat(Eigen::AngleAxisd(0.35, Vec3::UnitZ())) * Quat(Eigen::AngleAxisd(0.6, Vec3::UnitX())) *
                      Quat(Eigen::AngleAxisd(0.2, Vec3::UnitY())))
                         .normalized();
-  const Vec3 half(0.2, 0.15, 0.125);
-  auto mesh = std::make_shared<TriangleMesh>();
-  for (int i = 0; i < 8; ++i)
-    mesh->vertices.push_back(turn * Vec3(i & 1 ? half.x() : -half.x(), i & 2 ? half.y() : -half.y(), i & 4 ? half.z() : -half.z()));
-  // two counter-clockwise triangles per face (seen from outside)
-  const std::array<std::array<std::uint32_t, 4>, 6> faces{{{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}}};
-  for (const auto& f : faces) {
-    mesh->triangles.push_back({f[0], f[1], f[2]});
-    mesh->triangles.push_back({f[0], f[2], f[3]});
-  }
+  auto mesh = test::turnedBoxMesh(turn, Vec3(0.2, 0.15, 0.125));
   EXPECT_TRUE(mesh->makeSolid().ok());
   SourceShape s;
   s.kind = SourceShape::Kind::Mesh;

@@ -71,4 +71,16 @@ std::string positionList(const std::vector<Vec3>& xs) {
   return s;
 }
 
+std::shared_ptr<TriangleMesh> turnedBoxMesh(const Quat& turn, const Vec3& half) {
+  auto mesh = std::make_shared<TriangleMesh>();
+  for (int i = 0; i < 8; ++i)
+    mesh->vertices.push_back(turn * Vec3(i & 1 ? half.x() : -half.x(), i & 2 ? half.y() : -half.y(), i & 4 ? half.z() : -half.z()));
+  const std::array<std::array<std::uint32_t, 4>, 6> faces{{{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}}};
+  for (const auto& f : faces) {
+    mesh->triangles.push_back({f[0], f[1], f[2]});
+    mesh->triangles.push_back({f[0], f[2], f[3]});
+  }
+  return mesh;
+}
+
 }  // namespace volpar::test

@@ -3,11 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "engine/core/percentile.hpp"
 
+#include "engine/builders/triangle_mesh.hpp"
 #include "engine/scene/scene_build.hpp"
 #include "engine/scene/scene_loader.hpp"
 #include "engine/world.hpp"
@@ -43,5 +45,9 @@ using volpar::percentile;  // engine/core/percentile.hpp
 
 /// "[x, y, z], [x, y, z], ..." for a scene's particle list, every coordinate exact.
 [[nodiscard]] std::string positionList(const std::vector<Vec3>& xs);
+
+/// A box of half sizes `half` as a closed triangle mesh (two counter-clockwise triangles per face, seen from
+/// outside), turned by `turn`; not yet made solid.
+[[nodiscard]] std::shared_ptr<TriangleMesh> turnedBoxMesh(const Quat& turn, const Vec3& half);
 
 }  // namespace volpar::test

@@ -24,30 +24,10 @@ import time
 import h5py
 import numpy as np
 
-SCENE = """name: faults
-dt: 0.004166666666666667
-steps: 100000
-output: {every: 1}
-materials:
-  wood: {density: 700, restitution: 0.1, friction: 0.5}
-planes:
-  - {normal: [0, 0, 1], offset: 0, material: wood}
-bodies:
-  - name: domino
-    shape: {box: {size: [0.05, 0.3, 0.6]}}
-    fill: {radius: 0.025}
-    material: wood
-    position: [0, 0, 0.3]
-    repeat: {count: [6, 1, 1], spacing: [0.3, 0, 0]}
-  - name: pusher
-    shape: {sphere: {radius: 0.1}}
-    fill: {radius: 0.025}
-    material: wood
-    position: [-0.4, 0, 0.5]
-    velocity: [2.5, 0, 0]
-"""
+# a scene full of contacts, run with a frame every step
+SCENE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "../../scenes/examples/dominoes.yaml")
 
-STEPS = "1000"  # a frame every step
+RUN = ["--steps", "1000", "--every", "1"]
 
 # per-frame records compared with the uninterrupted run (first dimension: frames)
 PER_FRAME = [
@@ -94,16 +74,16 @@ def compare_frames(path, reference, failures, label):
 
 
 def kill_test(volpar, work, failures):
-    scene = os.path.join(work, "faults.yaml")
+    scene = SCENE
     reference = os.path.join(work, "reference.h5")
     began = time.time()
-    subprocess.run([volpar, "run", scene, "-o", reference, "--steps", STEPS], check=True, capture_output=True)
+    subprocess.run([volpar, "run", scene, "-o", reference, *RUN], check=True, capture_output=True)
     duration = time.time() - began  # the kills land at random moments of a run this long
     rng = random.Random(7)
     kills, counted, torn = 0, [], 0
     for trial in range(12):
         out = os.path.join(work, "killed%d.h5" % trial)
-        p = subprocess.Popen([volpar, "run", scene, "-o", out, "--steps", STEPS], stdout=subprocess.DEVNULL,
+        p = subprocess.Popen([volpar, "run", scene, "-o", out, *RUN], stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL)
         # wait for the file, then a random moment of the run (it writes a frame every step)
         deadline = time.time() + 30
@@ -139,7 +119,7 @@ def limited(bytes_):
 
 
 def disk_full_test(volpar, work, failures):
-    scene = os.path.join(work, "faults.yaml")
+    scene = SCENE
     reference = os.path.join(work, "reference.h5")
     scene_digest = digest(scene)
     for limit in (4 << 10, 64 << 10, 300 << 10, 1 << 20, 3 << 20, 8 << 20):
@@ -147,7 +127,7 @@ def disk_full_test(volpar, work, failures):
         with open(out, "wb") as f:
             f.write(b"an earlier result that must survive\n")
         before = digest(out)
-        r = subprocess.run([volpar, "run", scene, "-o", out, "--steps", STEPS], capture_output=True, text=True,
+        r = subprocess.run([volpar, "run", scene, "-o", out, *RUN], capture_output=True, text=True,
                            preexec_fn=limited(limit), timeout=120)
         label = "file-size limit %d KiB" % (limit >> 10)
         msg = r.stdout + r.stderr
@@ -200,8 +180,6 @@ def main():
     volpar, work = sys.argv[1], sys.argv[2]
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
-    with open(os.path.join(work, "faults.yaml"), "w") as f:
-        f.write(SCENE)
     failures = []
     kill_test(volpar, work, failures)
     disk_full_test(volpar, work, failures)
