@@ -5,8 +5,8 @@
 
 namespace volpar {
 
-MassProperties computeMassProperties(std::span<const Vec3> positions, std::span<const double> radii,
-                                     std::span<const double> masses) {
+MassProperties computeMassProperties(std::span<const Vec3> positions, std::span<const double> masses,
+                                     std::span<const double> ownMoments) {
   MassProperties mp;
   for (std::size_t i = 0; i < positions.size(); ++i) {
     mp.mass += masses[i];
@@ -14,10 +14,10 @@ MassProperties computeMassProperties(std::span<const Vec3> positions, std::span<
   }
   if (mp.mass <= 0.0) return mp;
   mp.centre /= mp.mass;
-  // sum of sphere inertias plus parallel-axis terms: I = sum m (2/5 r^2 1 + |d|^2 1 - d d^T)
+  // own moments plus parallel-axis terms: I = sum (J_i 1 + m (|d|^2 1 - d d^T))
   for (std::size_t i = 0; i < positions.size(); ++i) {
     const Vec3 d = positions[i] - mp.centre;
-    const double own = 0.4 * masses[i] * radii[i] * radii[i];
+    const double own = ownMoments[i];
     mp.inertia += (own + masses[i] * d.squaredNorm()) * Mat3::Identity() - masses[i] * d * d.transpose();
   }
   return mp;

@@ -1,6 +1,7 @@
 #pragma once
-// Mass, centre of mass and inertia of a set of particles, each a solid sphere
-// (inertia 2/5 m r^2 about its centre) moved to the body's centre by the parallel-axis theorem.
+// Mass, centre of mass and inertia of a set of particles, each with its own moment of inertia about its
+// centre (the volume it stands for: a lattice cell, or a solid sphere's 2/5 m r^2), moved to the body's
+// centre by the parallel-axis theorem.
 
 #include <span>
 
@@ -14,9 +15,13 @@ struct MassProperties {
   Mat3 inertia = Mat3::Zero();  ///< about the centre of mass, in the input frame [kg m^2]
 };
 
-/// positions [P] in any frame [m], radii [P] [m], masses [P] [kg].
-[[nodiscard]] MassProperties computeMassProperties(std::span<const Vec3> positions, std::span<const double> radii,
-                                                   std::span<const double> masses);
+/// positions [P] in any frame [m], masses [P] [kg], ownMoments [P]: each particle's moment of inertia about
+/// its centre [kg m^2] (isotropic).
+[[nodiscard]] MassProperties computeMassProperties(std::span<const Vec3> positions, std::span<const double> masses,
+                                                   std::span<const double> ownMoments);
+
+/// The moment of inertia of a solid sphere about its centre, 2/5 m r^2 [kg m^2].
+[[nodiscard]] inline double sphereMoment(double mass, double radius) { return 0.4 * mass * radius * radius; }
 
 /// Principal axes of an inertia tensor.
 struct PrincipalAxes {

@@ -85,7 +85,22 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
                                  " kg; expected a positive, finite mass"};
   }
 
-  const MassProperties mp = computeMassProperties(cloud.positions, cloud.radii, masses);
+  // each particle's own moment: its lattice cell's, or its sphere's
+  std::vector<double> own(n);
+  for (std::size_t i = 0; i < n; ++i)
+    own[i] = i < cloud.ownInertia.size() ? masses[i] * cloud.ownInertia[i] : sphereMoment(masses[i], cloud.radii[i]);
+  MassProperties mp = computeMassProperties(cloud.positions, masses, own);
+  // a rigid body filled from a solid takes the solid's inertia, moved to the particles' centre of mass (where
+  // the fill is symmetric, as for the primitives on the cubic lattice, the two centres coincide); what that adds
+  // to the particles' own is kept, so that fragments inherit their share of it
+  Mat3 residual = Mat3::Zero();
+  if (def.kind != BodyKind::Deformable && def.massModel == MassModel::Solid && cloud.solid && cloud.solid->volume > 0.0) {
+    const double density = mp.mass / cloud.solid->volume;
+    const Vec3 d = mp.centre - cloud.solid->centroid;
+    const Mat3 solid = density * cloud.solid->inertia + mp.mass * (d.squaredNorm() * Mat3::Identity() - d * d.transpose());
+    residual = solid - mp.inertia;
+    mp.inertia = solid;
+  }
   const PrincipalAxes axes = principalAxes(mp.inertia);
 
   BodyInfo info;
@@ -96,6 +111,10 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   info.inertiaLocal = axes.moments;
   info.principalInShape = axes.rotation;
   info.comInShape = mp.centre;
+  {
+    const Mat3 r = axes.rotation.toRotationMatrix();
+    info.inertiaResidual = r.transpose() * residual * r;
+  }
   info.source = def.source;
   info.core = fittedCore(def.source, cloud.positions);
 
@@ -121,6 +140,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     info.particles.emplace_back(p);
     particles_.radius[p] = cloud.radii[i];
     particles_.mass[p] = masses[i];
+    particles_.ownInertia[p] = own[i];
     const bool pinned = def.kind == BodyKind::Deformable && i < cloud.pinned.size() && cloud.pinned[i];
     particles_.invMass[p] = def.kind == BodyKind::Static || pinned ? 0.0 : 1.0 / masses[i];
     particles_.body[p] = id;
@@ -363,14 +383,19 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
     for (std::size_t i = 0; i < parentInfo.particles.size(); ++i)
       if (component[i] == part) ids.push_back(parentInfo.particles[i]);
     std::vector<Vec3> x;
-    std::vector<double> r, m;
+    std::vector<double> m, own;
     for (const ParticleId q : ids) {
       x.push_back(particles_.position[q.index()]);
-      r.push_back(particles_.radius[q.index()]);
       m.push_back(particles_.mass[q.index()]);
+      own.push_back(particles_.ownInertia[q.index()]);
     }
-    // mass properties from the fragment's own particles, in the world
-    const MassProperties mp = computeMassProperties(x, r, m);
+    // mass properties from the fragment's own particles, in the world, plus its share (by mass) of what its
+    // parent's inertia added to its particles': the fragments' inertias about the parent's centre sum to the
+    // parent's, so the split keeps angular momentum
+    MassProperties mp = computeMassProperties(x, m, own);
+    const Mat3 parentAxes = parentState.orientation.toRotationMatrix();
+    const Mat3 share = (mp.mass / parentInfo.mass) * parentAxes * parentInfo.inertiaResidual * parentAxes.transpose();
+    mp.inertia += share;
     const PrincipalAxes axes = principalAxes(mp.inertia);
     const BodyId id(bodies_.size());
     BodyInfo info;
@@ -383,6 +408,10 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
     // the fragment keeps its parent's shape frame
     info.principalInShape = (shapeOrientation.conjugate() * axes.rotation).normalized();
     info.comInShape = shapeOrientation.conjugate() * (mp.centre - shapeOrigin);
+    {
+      const Mat3 r = axes.rotation.toRotationMatrix();
+      info.inertiaResidual = r.transpose() * share * r;
+    }
     info.particles = ids;
     info.createdStep = stepIndex_ + 1;
     info.parent = parentId;
@@ -942,8 +971,7 @@ void World::updateDeformableBodyState(BodyId id) {
     const std::size_t i = p.index();
     const Vec3 d = particles_.position[i] - x;
     const double m = particles_.mass[i];
-    const double own = 0.4 * m * particles_.radius[i] * particles_.radius[i];
-    inertia += (own + m * d.squaredNorm()) * Mat3::Identity() - m * d * d.transpose();
+    inertia += (sphereMoment(m, particles_.radius[i]) + m * d.squaredNorm()) * Mat3::Identity() - m * d * d.transpose();
     apq += m * d * particles_.local[i].transpose();
     l += m * d.cross(particles_.velocity[i] - v);
     box.extend(Aabb::sphere(particles_.position[i], particles_.radius[i]));

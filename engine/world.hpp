@@ -11,6 +11,7 @@
 // nothing once the world is built (buffers keep their capacity), and never writes files: a Runner
 // watches the world and writes trajectory frames.
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -46,6 +47,7 @@ struct BodyDef {
   std::optional<double> particleMass;      ///< [kg] per particle; default density x particle volume
   std::optional<double> totalMass;         ///< [kg] spread evenly over the particles
   SourceShape source;                      ///< the primitive the cloud was filled from, if any
+  MassModel massModel = MassModel::Solid;  ///< Solid applies where the cloud has a solid (ParticleCloud::solid)
 };
 
 /// A connector that broke.

@@ -138,6 +138,7 @@ int run(const RunArgs& args) {
   } else {
     std::printf("scene        %s (%s)\n", desc->name.c_str(), args.scene.c_str());
     std::printf("bodies       %zu, particles %zu\n", s.bodies, s.particles);
+    for (const std::string& note : built->notes) std::printf("note         %s\n", note.c_str());
     std::printf("steps        %lld (t = %.6g s)%s\n", static_cast<long long>(s.steps), world.time(),
                 s.interrupted ? ", interrupted" : "");
     std::printf("speed        %.1f steps/s (%.3f s stepping, %.3f s wall)\n", s.stepsPerSecond, s.stepSeconds,

@@ -102,6 +102,11 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
   // the shape's exact volume, shared evenly: the body gets exactly density x volume
   const double cell = shape.volume() / static_cast<double>(kept.size());
   const double band = 0.5 * s;
+  // the second moment of a lattice cell per unit mass: a cube of side s; HCP's cell (a trapezo-rhombic
+  // dodecahedron) has that of FCC's rhombic dodecahedron, s^2 / 8
+  const double ownInertia = (settings.lattice == Lattice::Cubic ? 1.0 / 6.0 : 1.0 / 8.0) * s * s;
+  cloud.solid = shape.massProperties();
+  cloud.solidSize = extent;
   std::vector<Vec3> missing, present, features;
   for (const Index3& ijk : kept) {
     const Vec3 p = anchor + siteOffset(settings.lattice, s, ijk);
@@ -176,6 +181,7 @@ Result<ParticleCloud> fillShape(const SolidShape& shape, const FillSettings& set
     cloud.positions.push_back(p);
     cloud.radii.push_back(r);
     cloud.volumes.push_back(cell);
+    cloud.ownInertia.push_back(ownInertia);
     cloud.flags.push_back(flags);
     cloud.normals.push_back(normal);
     cloud.features.push_back(static_cast<std::uint8_t>(std::min(used, 3)));
@@ -215,6 +221,7 @@ Result<ParticleCloud> buildParticleList(const ParticleListSettings& in) {
     cloud.positions.push_back(in.positions[i]);
     cloud.radii.push_back(r);
     cloud.volumes.push_back(4.0 / 3.0 * std::numbers::pi * r * r * r);
+    cloud.ownInertia.push_back(0.4 * r * r);
   }
   if (in.explicitConnectors) {
     std::set<std::array<std::uint32_t, 2>> seen;

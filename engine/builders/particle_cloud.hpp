@@ -3,8 +3,10 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
+#include "engine/builders/solid_mass.hpp"
 #include "engine/core/types.hpp"
 
 namespace volpar {
@@ -13,6 +15,13 @@ struct ParticleCloud {
   std::vector<Vec3> positions;    ///< centres in the shape frame [m], [P]
   std::vector<double> radii;      ///< [m], [P]
   std::vector<double> volumes;    ///< volume each particle stands for [m^3], [P] (share of the shape, or sphere volume)
+  /// Moment of inertia per unit mass of the volume each particle stands for, about its centre [m^2], [P]:
+  /// its lattice cell's (cubic s^2 / 6, HCP s^2 / 8) or its sphere's (2/5 r^2); empty means the sphere's
+  std::vector<double> ownInertia;
+  /// The filled solid's exact mass properties at unit density (shapes.hpp); none for explicit particle lists
+  std::optional<SolidMass> solid;
+  /// The size of the filled solid's bounds along the shape frame's axes [m]; zero for explicit particle lists
+  Vec3 solidSize = Vec3::Zero();
   std::vector<Vec3> normals;      ///< outward unit normal of surface particles, zero otherwise, shape frame, [P]
   /// ParticleFlag bits (engine/core/particle_store.hpp), 0 for interior particles, [P]
   std::vector<std::uint8_t> flags;

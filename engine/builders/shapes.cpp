@@ -48,7 +48,22 @@ void SphereShape::featureNormals(const Vec3& p, double /*band*/, std::vector<Vec
   if (p.norm() > 1e-12 * radius_) out.push_back(p.normalized());
 }
 
+SolidMass BoxShape::massProperties() const {
+  SolidMass m;
+  m.volume = volume();
+  const Vec3 sq = (2.0 * half_).cwiseAbs2();
+  m.inertia.diagonal() = m.volume / 12.0 * Vec3(sq.y() + sq.z(), sq.x() + sq.z(), sq.x() + sq.y());
+  return m;
+}
+
 double SphereShape::volume() const { return 4.0 / 3.0 * std::numbers::pi * radius_ * radius_ * radius_; }
+
+SolidMass SphereShape::massProperties() const {
+  SolidMass m;
+  m.volume = volume();
+  m.inertia.diagonal().setConstant(0.4 * m.volume * radius_ * radius_);
+  return m;
+}
 
 std::string SphereShape::describe() const { return "sphere of radius " + format(radius_) + " m"; }
 
@@ -75,6 +90,15 @@ void CylinderShape::featureNormals(const Vec3& p, double band, std::vector<Vec3>
 
 double CylinderShape::volume() const { return std::numbers::pi * radius_ * radius_ * 2.0 * halfHeight_; }
 
+SolidMass CylinderShape::massProperties() const {
+  SolidMass m;
+  m.volume = volume();
+  const double r2 = radius_ * radius_, h = 2.0 * halfHeight_;
+  const double across = m.volume * (3.0 * r2 + h * h) / 12.0;
+  m.inertia.diagonal() = Vec3(across, across, 0.5 * m.volume * r2);
+  return m;
+}
+
 std::string CylinderShape::describe() const {
   return "cylinder of radius " + format(radius_) + " m and height " + format(2 * halfHeight_) + " m";
 }
@@ -95,8 +119,45 @@ double CapsuleShape::volume() const {
   return std::numbers::pi * r * r * (2.0 * halfLength_ + 4.0 / 3.0 * r);
 }
 
+SolidMass CapsuleShape::massProperties() const {
+  // the cylinder between the caps, and two hemispheres whose own centroids lie 3 r / 8 beyond its ends
+  SolidMass m;
+  m.volume = volume();
+  const double r = radius_, r2 = r * r, l = 2.0 * halfLength_;
+  const double cylinder = std::numbers::pi * r2 * l;
+  const double hemisphere = 2.0 / 3.0 * std::numbers::pi * r2 * r;
+  const double offset = halfLength_ + 0.375 * r;
+  const double across =
+      cylinder * (3.0 * r2 + l * l) / 12.0 + 2.0 * hemisphere * (83.0 / 320.0 * r2 + offset * offset);
+  const double along = 0.5 * cylinder * r2 + 2.0 * 0.4 * hemisphere * r2;
+  m.inertia.diagonal() = Vec3(across, across, along);
+  return m;
+}
+
 std::string CapsuleShape::describe() const {
   return "capsule of radius " + format(radius_) + " m and segment length " + format(2 * halfLength_) + " m";
+}
+
+SolidMass MeshShape::massProperties() const {
+  // tetrahedra from the origin to each triangle: sum of their volumes, first and second moments
+  SolidMass m;
+  Vec3 first = Vec3::Zero();
+  Mat3 second = Mat3::Zero();  // integral of x x^T
+  for (const auto& tr : mesh_->triangles) {
+    const Vec3& a = mesh_->vertices[tr[0]];
+    const Vec3& b = mesh_->vertices[tr[1]];
+    const Vec3& c = mesh_->vertices[tr[2]];
+    const double v = a.dot(b.cross(c)) / 6.0;
+    const Vec3 sum = a + b + c;
+    m.volume += v;
+    first += v / 4.0 * sum;
+    second += v / 20.0 * (a * a.transpose() + b * b.transpose() + c * c.transpose() + sum * sum.transpose());
+  }
+  if (!(m.volume > 0.0)) return m;
+  m.centroid = first / m.volume;
+  const Mat3 central = second - m.volume * m.centroid * m.centroid.transpose();
+  m.inertia = central.trace() * Mat3::Identity() - central;
+  return m;
 }
 
 double MeshShape::signedDistance(const Vec3& p) const {

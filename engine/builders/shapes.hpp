@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/builders/solid_mass.hpp"
 #include "engine/builders/triangle_mesh.hpp"
 #include "engine/core/types.hpp"
 
@@ -25,6 +26,8 @@ class SolidShape {
   [[nodiscard]] virtual Eigen::AlignedBox3d bounds() const = 0;
   /// Exact volume [m^3].
   [[nodiscard]] virtual double volume() const = 0;
+  /// Exact mass properties at unit density.
+  [[nodiscard]] virtual SolidMass massProperties() const = 0;
   /// Short description for messages, e.g. "box 0.3 x 0.3 x 0.3 m".
   [[nodiscard]] virtual std::string describe() const = 0;
 };
@@ -37,6 +40,7 @@ class BoxShape final : public SolidShape {
   void featureNormals(const Vec3& p, double band, std::vector<Vec3>& out) const override;
   Eigen::AlignedBox3d bounds() const override { return {-half_, half_}; }
   double volume() const override { return 8.0 * half_.prod(); }
+  SolidMass massProperties() const override;
   std::string describe() const override;
 
  private:
@@ -51,6 +55,7 @@ class SphereShape final : public SolidShape {
   void featureNormals(const Vec3& p, double band, std::vector<Vec3>& out) const override;
   Eigen::AlignedBox3d bounds() const override { return {Vec3::Constant(-radius_), Vec3::Constant(radius_)}; }
   double volume() const override;
+  SolidMass massProperties() const override;
   std::string describe() const override;
 
  private:
@@ -67,6 +72,7 @@ class CylinderShape final : public SolidShape {
     return {Vec3(-radius_, -radius_, -halfHeight_), Vec3(radius_, radius_, halfHeight_)};
   }
   double volume() const override;
+  SolidMass massProperties() const override;
   std::string describe() const override;
 
  private:
@@ -85,6 +91,7 @@ class CapsuleShape final : public SolidShape {
     return {Vec3(-radius_, -radius_, -halfLength_ - radius_), Vec3(radius_, radius_, halfLength_ + radius_)};
   }
   double volume() const override;
+  SolidMass massProperties() const override;
   std::string describe() const override;
 
  private:
@@ -100,6 +107,7 @@ class MeshShape final : public SolidShape {
   void featureNormals(const Vec3& p, double band, std::vector<Vec3>& out) const override;
   Eigen::AlignedBox3d bounds() const override { return mesh_->bounds(); }
   double volume() const override { return mesh_->volume(); }
+  SolidMass massProperties() const override;
   std::string describe() const override;
 
  private:

@@ -35,6 +35,12 @@ struct BodyState {
 static_assert(sizeof(BodyState) <= 224, "BodyState is hot: keep it within 3.5 cache lines");
 
 /// Cold per-body data.
+/// Where a rigid body's mass properties come from.
+enum class MassModel : std::uint8_t {
+  Solid,      ///< the solid it was filled from: its inertia, about the particles' centre of mass
+  Particles,  ///< its particles, each standing for its lattice cell (or, in a particle list, its sphere)
+};
+
 struct BodyInfo {
   std::string name;
   BodyKind kind = BodyKind::Rigid;
@@ -43,6 +49,9 @@ struct BodyInfo {
   Vec3 inertiaLocal = Vec3::Zero();            ///< principal moments about the centre of mass [kg m^2]
   Quat principalInShape = Quat::Identity();    ///< rotation from principal-frame to shape-frame coordinates
   Vec3 comInShape = Vec3::Zero();              ///< centre of mass in shape-frame coordinates [m]
+  /// What the inertia adds to that of its particles (their own moments and parallel-axis terms) so that it is
+  /// the filled solid's (MassModel::Solid), in the principal frame [kg m^2]; fragments inherit their share
+  Mat3 inertiaResidual = Mat3::Zero();
   std::vector<ParticleId> particles;           ///< the body's particles, ascending (empty once retired)
   SourceShape source;                          ///< the solid it was filled from, if any
   SourceShape core;                            ///< that solid fitted to the particle centres (source_shape.hpp)

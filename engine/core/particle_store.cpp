@@ -11,6 +11,7 @@ ParticleId ParticleStore::grow(std::size_t count) {
   radius.resize(n, 0.0);
   mass.resize(n, 0.0);
   invMass.resize(n, 0.0);
+  ownInertia.resize(n, 0.0);
   body.resize(n, BodyId{});
   normalIndex.resize(n, -1);
   flags.resize(n, 0);
@@ -24,6 +25,7 @@ void ParticleStore::reserve(std::size_t count) {
   radius.reserve(count);
   mass.reserve(count);
   invMass.reserve(count);
+  ownInertia.reserve(count);
   body.reserve(count);
   normalIndex.reserve(count);
   flags.reserve(count);

@@ -32,6 +32,7 @@ struct ParticleStore {
   std::vector<double> radius;          ///< [m], [P]
   std::vector<double> mass;            ///< [kg], [P]
   std::vector<double> invMass;         ///< [1/kg], [P]; 0 for particles of static bodies
+  std::vector<double> ownInertia;      ///< moment of inertia about its centre [kg m^2], [P] (mass_properties.hpp)
   std::vector<BodyId> body;            ///< owning body, [P]; changes only when a body breaks apart
   std::vector<std::int32_t> normalIndex;  ///< index into the normal cache, -1 for interior particles, [P]
   std::vector<std::uint8_t> flags;     ///< ParticleFlag bits, [P]

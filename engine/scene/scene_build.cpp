@@ -190,6 +190,21 @@ Result<ParticleCloud> buildCloud(const SceneDesc& desc, const BodyDesc& body, So
   return cloud;
 }
 
+std::optional<std::string> latticeFitNote(const std::string& body, const ParticleCloud& cloud) {
+  if (!(cloud.solidSize.minCoeff() > 0.0) || cloud.size() == 0) return std::nullopt;
+  Eigen::AlignedBox3d reach;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    reach.extend(cloud.positions[i] - Vec3::Constant(cloud.radii[i]));
+    reach.extend(cloud.positions[i] + Vec3::Constant(cloud.radii[i]));
+  }
+  const Vec3 solid = cloud.solidSize, particles = reach.sizes();
+  if (!((solid - particles).maxCoeff() > 1e-6 * solid.maxCoeff())) return std::nullopt;
+  auto size = [](const Vec3& v) { return format(v.x()) + " x " + format(v.y()) + " x " + format(v.z()) + " m"; };
+  return "body '" + body + "': its particles span " + size(particles) + " of its solid's " + size(solid) +
+         " (the lattice of spacing " + format(cloud.spacing) +
+         " m fits whole spacings); it collides at the particles' size and has the whole solid's mass and inertia";
+}
+
 Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options) {
   // what the scene will need, before anything is allocated for it
   const auto estimate = estimateScene(desc);
@@ -210,7 +225,7 @@ Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options
   settings.solverIterations = desc.solverIterations;
   settings.substeps = desc.substeps;
   settings.rawNormals = desc.rawNormals;
-  BuiltScene built{World(settings), {}, {}};
+  BuiltScene built{World(settings), {}, {}, {}};
   World& world = built.world;
 
   std::map<std::string, MaterialId> materialIds;
@@ -236,6 +251,7 @@ Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options
       }
     }
     if (const auto* mesh = std::get_if<MeshDesc>(&b.shape)) built.meshFiles.push_back(mesh->path);
+    if (auto note = latticeFitNote(b.name, *cloud)) built.notes.push_back(std::move(*note));
     const auto& c = b.repeat.count;
     totalParticles += cloud->size() * static_cast<std::size_t>(c[0] * c[1] * c[2]);
     if (totalParticles > kMaxSceneParticles)
@@ -264,6 +280,7 @@ Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options
           def.particleMass = b.particleMass;
           def.totalMass = b.mass;
           def.source = source;
+          def.massModel = b.massModel;
           auto id = world.addBody(def, *cloud);
           if (!id) return at(desc, b.mark, id.error().message);
           built.bodySource.push_back(d);

@@ -17,7 +17,15 @@ struct BuiltScene {
   World world;
   std::vector<std::size_t> bodySource;   ///< for each body, the index of its entry in SceneDesc::bodies
   std::vector<std::string> meshFiles;    ///< resolved paths of the mesh files used, in scene order
+  /// What the user should know about the build, one line each: bodies whose particles fall short of their
+  /// solid's size (the lattice fits whole spacings; such a body collides at the particles' size, and weighs
+  /// and turns as the whole solid)
+  std::vector<std::string> notes;
 };
+
+/// The note for a filled body whose particles (spheres included) reach less far than its solid along some
+/// axis of its shape frame, by more than 1e-6 of the solid's size; nothing for a body that fills it.
+[[nodiscard]] std::optional<std::string> latticeFitNote(const std::string& body, const ParticleCloud& cloud);
 
 /// The largest number of particles a scene may create.
 inline constexpr std::size_t kMaxSceneParticles = 50'000'000;

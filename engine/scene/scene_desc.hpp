@@ -84,6 +84,9 @@ struct BodyDesc {
   /// As the body's `normals` key gives it; unset takes SceneDesc::normals (see SceneDesc::normalsOf). An
   /// explicit particle list has no solid, so its normals are always estimated (the loader rejects `shape`).
   std::optional<SurfaceNormals> normals;
+  /// Scene key `mass_properties`: `solid` (the default: a rigid body filled from a solid takes its exact
+  /// inertia) or `particles` (the sum over its particles, each standing for its lattice cell).
+  MassModel massModel = MassModel::Solid;
   /// Deformable bodies: particles inside any of these boxes (shape frame, [m]) are held fixed in space.
   std::vector<Eigen::AlignedBox3d> pins;    ///< particles inside (shape frame) are held in place
   std::vector<SourceMark> pinMarks;         ///< where each pin box is in the scene file

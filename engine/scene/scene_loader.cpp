@@ -551,7 +551,7 @@ RepeatDesc repeat(const Ctx& ctx, const YAML::Node& n) {
 BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std::filesystem::path& sceneDir) {
   const MapReader m(ctx, n, "body",
                     {"name", "kind", "shape", "fill", "connectors", "material", "mass", "particle_mass", "position",
-                     "orientation", "velocity", "angular_velocity", "repeat", "pin", "normals"});
+                     "orientation", "velocity", "angular_velocity", "repeat", "pin", "normals", "mass_properties"});
   BodyDesc b;
   b.mark = {n.Mark().line + 1, n.Mark().column + 1};
   b.name = m.has("name") ? text(ctx, m.get("name"), "body name") : "body" + std::to_string(index);
@@ -571,6 +571,10 @@ BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std:
       ctx.fail(nn.Mark(), "an explicit particle list has no solid to take normals from; expected 'normals: estimated' "
                           "(its default) or no 'normals'");
   }
+  if (m.has("mass_properties"))
+    b.massModel = oneOf(ctx, m.get("mass_properties"), "mass_properties", {"solid", "particles"}) == "particles"
+                      ? MassModel::Particles
+                      : MassModel::Solid;
   if (m.has("connectors")) b.connectors = connectors(ctx, m.get("connectors"), b.kind);
   else if (b.kind == BodyKind::Deformable)
     ctx.fail(m.mark(), "missing key 'connectors' in body '" + b.name + "'; a deformable body needs {springs: {...}} or rods");

@@ -9,8 +9,8 @@ namespace {
 
 TEST(MassProperties, SingleSphere) {
   const std::vector<Vec3> p{Vec3(1, 2, 3)};
-  const std::vector<double> r{0.5}, m{2.0};
-  const MassProperties mp = computeMassProperties(p, r, m);
+  const std::vector<double> m{2.0}, own{sphereMoment(2.0, 0.5)};
+  const MassProperties mp = computeMassProperties(p, m, own);
   EXPECT_EQ(mp.mass, 2.0);
   EXPECT_EQ(mp.centre, Vec3(1, 2, 3));
   EXPECT_LT((mp.inertia - 0.4 * 2.0 * 0.25 * Mat3::Identity()).norm(), 1e-15);
@@ -18,8 +18,8 @@ TEST(MassProperties, SingleSphere) {
 
 TEST(MassProperties, ParallelAxisForTwoSpheres) {
   const std::vector<Vec3> p{Vec3(-1, 0, 0), Vec3(3, 0, 0)};
-  const std::vector<double> r{0.1, 0.1}, m{3.0, 1.0};
-  const MassProperties mp = computeMassProperties(p, r, m);
+  const std::vector<double> m{3.0, 1.0}, moments{sphereMoment(3.0, 0.1), sphereMoment(1.0, 0.1)};
+  const MassProperties mp = computeMassProperties(p, m, moments);
   EXPECT_EQ(mp.centre, Vec3(0, 0, 0));
   const double own = 0.4 * 0.01;
   EXPECT_NEAR(mp.inertia(0, 0), 4.0 * own, 1e-15);

@@ -17,7 +17,9 @@ namespace {
 MassProperties massOf(const ParticleCloud& c, double density) {
   std::vector<double> m;
   for (const double v : c.volumes) m.push_back(density * v);
-  return computeMassProperties(c.positions, c.radii, m);
+  std::vector<double> own;
+  for (std::size_t i = 0; i < m.size(); ++i) own.push_back(sphereMoment(m[i], c.radii[i]));
+  return computeMassProperties(c.positions, m, own);
 }
 
 ParticleCloud fillOrFail(const SolidShape& shape, FillSettings f) {

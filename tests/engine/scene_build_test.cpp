@@ -98,9 +98,8 @@ bodies:
   EXPECT_NEAR(w.bodies().info[0].mass, 700 * 0.027, 1e-12);
   EXPECT_NEAR(w.bodies().info[1].mass, 2.7, 1e-12);
   EXPECT_NEAR(w.bodies().info[2].mass, 5.4, 1e-12);
-  // pile-N's body: 27 spheres of 0.1 kg; per axis the lattice's mean square offset is s^2 (n^2 - 1) / 12,
-  // so I_xx = 2.7 (2/5 r^2 + 2 * 0.01 * 8 / 12)
-  EXPECT_NEAR(w.bodies().info[1].inertiaLocal.x(), 2.7 * (0.4 * 0.0025 + 2.0 * 0.01 * 8.0 / 12.0), 1e-12);
+  // pile-N's body: 27 particles of 0.1 kg standing for a solid 0.3 m cube, I_xx = 2.7 (0.3^2 + 0.3^2) / 12
+  EXPECT_NEAR(w.bodies().info[1].inertiaLocal.x(), 2.7 * 0.18 / 12.0, 1e-12);
 }
 
 TEST(SceneBuild, StaticBodiesNeverMove) {

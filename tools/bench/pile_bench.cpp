@@ -3,8 +3,8 @@
 //
 // pile-N (scenes/bench/pile-1000.yaml is pile-1000):
 //   - N rigid bodies, each a 3 x 3 x 3 cubic lattice of spheres: radius 0.05 m, centre spacing 0.1 m, 0.1 kg
-//     per sphere (2.7 kg per body); inertia of the 27 solid spheres about the centre of mass (2/5 m r^2 each
-//     plus the parallel-axis term: 0.0387 kg m^2 about every axis)
+//     per sphere (2.7 kg per body); inertia of the solid 0.3 m cube the 27 lattice cells tile (0.0405 kg m^2
+//     about every axis)
 //   - at rest; body i turned about the world z axis by 0.37 i rad, then about the world x axis by 0.11 i rad
 //     (q = Rx(0.11 i) Rz(0.37 i)); with k = ceil(cbrt(N)) its centre is
 //     x = (i mod k - (k-1)/2) 0.45, y = ((i div k) mod k - (k-1)/2) 0.45, z = 0.5 + (i div k^2) 0.45 [m]
@@ -112,14 +112,15 @@ std::array<Vec3, kSpheresPerBody> latticeOffsets() {
   return out;
 }
 
-/// Principal moments of the 27 solid spheres about the body centre [kg m^2]: 2/5 m r^2 for each sphere
-/// plus m d^2, d the sphere centre's distance from the axis (all three are equal: 0.0387).
+/// Principal moments of the crate about its centre [kg m^2]: each of the 27 particles stands for its lattice
+/// cell, a cube of side s (own moment m s^2 / 6), plus m d^2, d the particle's distance from the axis; the cells
+/// tile the solid 0.3 m cube, whose moments these are (all three equal: 0.0405).
 Vec3 latticeInertia() {
   Vec3 inertia = Vec3::Zero();
   for (const Vec3& o : latticeOffsets()) {
     const Vec3 sq = o.cwiseProduct(o);
     inertia += kSphereMass * Vec3(sq.y() + sq.z(), sq.x() + sq.z(), sq.x() + sq.y());
-    inertia += Vec3::Constant(0.4 * kSphereMass * kRadius * kRadius);
+    inertia += Vec3::Constant(kSphereMass * kSpacing * kSpacing / 6.0);
   }
   return inertia;
 }
