@@ -201,8 +201,9 @@ std::optional<std::string> latticeFitNote(const std::string& body, const Particl
   if (!((solid - particles).maxCoeff() > 1e-6 * solid.maxCoeff())) return std::nullopt;
   auto size = [](const Vec3& v) { return format(v.x()) + " x " + format(v.y()) + " x " + format(v.z()) + " m"; };
   return "body '" + body + "': its particles span " + size(particles) + " of its solid's " + size(solid) +
-         " (the lattice of spacing " + format(cloud.spacing) +
-         " m fits whole spacings); it collides at the particles' size and has the whole solid's mass and inertia";
+         " (lattice sites " + format(cloud.spacing) +
+         " m apart are filled only where a whole particle fits inside; a smaller radius, or one that divides the "
+         "size, fills it more closely); it collides at the particles' size and has the whole solid's mass and inertia";
 }
 
 Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options) {

@@ -18,8 +18,8 @@ struct BuiltScene {
   std::vector<std::size_t> bodySource;   ///< for each body, the index of its entry in SceneDesc::bodies
   std::vector<std::string> meshFiles;    ///< resolved paths of the mesh files used, in scene order
   /// What the user should know about the build, one line each: bodies whose particles fall short of their
-  /// solid's size (the lattice fits whole spacings; such a body collides at the particles' size, and weighs
-  /// and turns as the whole solid)
+  /// solid's size (sites are filled only where a whole particle fits inside; such a body collides at the
+  /// particles' size, and weighs and turns as the whole solid)
   std::vector<std::string> notes;
 };
 
