@@ -96,9 +96,7 @@ Solid meshSolid(const std::string& name, const std::string& file, double r) {
   EXPECT_TRUE(mesh.ok()) << file;
   if (!mesh.ok()) return {};
   EXPECT_TRUE(mesh->makeSolid().ok()) << file;
-  SourceShape s;
-  s.kind = SourceShape::Kind::Mesh;
-  s.facePlanes = mesh->convexFacePlanes();
+  const SourceShape s = test::meshSource(*mesh);
   const MeshShape shape(std::make_shared<const TriangleMesh>(std::move(mesh.value())));
   return finish(name, filled(shape, Lattice::Cubic, r), s);
 }
@@ -108,9 +106,7 @@ Solid blockMesh() {
   const Quat turn = (Quat(Eigen::AngleAxisd(0.5, Vec3::UnitZ())) * Quat(Eigen::AngleAxisd(0.3, Vec3::UnitX()))).normalized();
   auto mesh = test::turnedBoxMesh(turn, Vec3(0.125, 0.1, 0.075));
   EXPECT_TRUE(mesh->makeSolid().ok());
-  SourceShape s;
-  s.kind = SourceShape::Kind::Mesh;
-  s.facePlanes = mesh->convexFacePlanes();
+  const SourceShape s = test::meshSource(*mesh);
   EXPECT_EQ(s.facePlanes.size(), 6u);
   return finish("block_mesh", filled(MeshShape(mesh), Lattice::Cubic, 0.025), s);
 }

@@ -63,9 +63,7 @@ SweepShape sweepMesh(Lattice lattice, bool estimated) {
                         .normalized();
   auto mesh = test::turnedBoxMesh(turn, Vec3(0.2, 0.15, 0.125));
   EXPECT_TRUE(mesh->makeSolid().ok());
-  SourceShape s;
-  s.kind = SourceShape::Kind::Mesh;
-  s.facePlanes = mesh->convexFacePlanes();
+  const SourceShape s = test::meshSource(*mesh);
   EXPECT_EQ(s.facePlanes.size(), 6u);
   return make("mesh", s, MeshShape(mesh), lattice, 0.025, estimated);
 }

@@ -71,6 +71,13 @@ std::string positionList(const std::vector<Vec3>& xs) {
   return s;
 }
 
+SourceShape meshSource(const TriangleMesh& mesh) {
+  SourceShape s;
+  s.kind = SourceShape::Kind::Mesh;
+  s.facePlanes = mesh.convexFacePlanes();
+  return s;
+}
+
 std::shared_ptr<TriangleMesh> turnedBoxMesh(const Quat& turn, const Vec3& half) {
   auto mesh = std::make_shared<TriangleMesh>();
   for (int i = 0; i < 8; ++i)

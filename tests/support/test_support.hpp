@@ -10,6 +10,7 @@
 #include "engine/core/percentile.hpp"
 
 #include "engine/builders/triangle_mesh.hpp"
+#include "engine/core/source_shape.hpp"
 #include "engine/scene/scene_build.hpp"
 #include "engine/scene/scene_loader.hpp"
 #include "engine/world.hpp"
@@ -49,5 +50,9 @@ using volpar::percentile;  // engine/core/percentile.hpp
 /// A box of half sizes `half` as a closed triangle mesh (two counter-clockwise triangles per face, seen from
 /// outside), turned by `turn`; not yet made solid.
 [[nodiscard]] std::shared_ptr<TriangleMesh> turnedBoxMesh(const Quat& turn, const Vec3& half);
+
+/// The solid a mesh made solid (TriangleMesh::makeSolid) was filled from: kind Mesh with its convex face planes
+/// (none where it is not convex).
+[[nodiscard]] SourceShape meshSource(const TriangleMesh& mesh);
 
 }  // namespace volpar::test

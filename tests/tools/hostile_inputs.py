@@ -86,6 +86,7 @@ def scene_cases():
     add("bodies a map", HEAD + "bodies: {a: 1}\n", "expected a non-empty list of bodies")
     # materials and planes
     add("material unknown", body("    material: steel\n"), "steel")
+    add("mass_properties unknown", body("    mass_properties: solids\n"), "expected one of: solid, particles")
     add("restitution 2", HEAD + "materials:\n  m: {restitution: 2}\nbodies:\n" + BOX, "restitution in [0, 1]")
     add("density negative", HEAD + "materials:\n  m: {density: -5}\nbodies:\n" + BOX, "expected a positive density")
     add("friction NaN", HEAD + "materials:\n  m: {friction: .nan}\nbodies:\n" + BOX, "friction")
