@@ -463,8 +463,9 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
         Vec3 t1, t2;
         tangents(in.normal, t1, t2);
         b.massN[l] = prepareAxis(sa, sb, in.rA, in.rB, in.normal, b.n, l);
-        b.massT1[l] = prepareAxis(sa, sb, in.rA, in.rB, t1, b.t1, l);
-        b.massT2[l] = prepareAxis(sa, sb, in.rA, in.rB, t2, b.t2, l);
+        const Vec3 fA = in.rA + in.frictionOffset, fB = in.rB + in.frictionOffset;
+        b.massT1[l] = prepareAxis(sa, sb, fA, fB, t1, b.t1, l);
+        b.massT2[l] = prepareAxis(sa, sb, fA, fB, t2, b.t2, l);
         keys[4 * j + lane] = in.key;
         b.friction[l] = static_cast<float>(in.friction);
         // relative velocity of B with respect to A along n: negative when approaching
@@ -504,19 +505,21 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       next[l] = Cached{ln, V4(tx, ty, tz, 0.0f)};
       const Vec3 impulse(static_cast<double>(ln * b.n.dx[l] + tx), static_cast<double>(ln * b.n.dy[l] + ty),
                          static_cast<double>(ln * b.n.dz[l] + tz));
+      const Vec3 tangential(static_cast<double>(tx), static_cast<double>(ty), static_cast<double>(tz));
       impulses_[order_[k]] = impulse;
       sum += static_cast<double>(ln);
       // (into the slots' double velocities: each half's slots lie apart from the other's, so the two
-      // threads never write one cache line)
+      // threads never write one cache line; the friction acts at its own arms)
+      const Vec3 moment = in.frictionOffset.cross(tangential);
       if (in.a != kFixed) {
         const SolverBody& a = bodies[in.a];
         dv_[b.a[static_cast<std::size_t>(l)]] -= a.invMass * impulse;
-        dw_[b.a[static_cast<std::size_t>(l)]] -= a.invInertia * in.rA.cross(impulse);
+        dw_[b.a[static_cast<std::size_t>(l)]] -= a.invInertia * (in.rA.cross(impulse) + moment);
       }
       if (in.b != kFixed) {
         const SolverBody& sb = bodies[in.b];
         dv_[b.b[static_cast<std::size_t>(l)]] += sb.invMass * impulse;
-        dw_[b.b[static_cast<std::size_t>(l)]] += sb.invInertia * in.rB.cross(impulse);
+        dw_[b.b[static_cast<std::size_t>(l)]] += sb.invInertia * (in.rB.cross(impulse) + moment);
       }
     }
     return sum;

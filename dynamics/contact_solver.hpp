@@ -4,7 +4,8 @@
 // for position correction (Catto, Box2D; Bullet's m_splitImpulse).
 //
 // Per contact point: a normal impulse with accumulated clamping (>= 0); Coulomb friction in two tangent
-// directions, the pair clamped to the cone |lambda_t| <= mu lambda_n; restitution as a velocity target
+// directions, the pair clamped to the cone |lambda_t| <= mu lambda_n, acting at the point or at an offset
+// from it (a reduced patch's points carry the twisting resistance of the area they stand for); restitution as a velocity target
 // -e v_n for approach speeds above a threshold; warm starting from the previous step's impulses, matched by
 // the point's key (the pair of particle ids, exact because ids are stable). Penetration is removed by
 // separate "pseudo" velocities that move positions but carry no momentum, so position correction adds no
@@ -58,6 +59,10 @@ struct ContactPointInput {
   Vec3 rA = Vec3::Zero();        ///< contact point minus A's centre of mass [m]
   Vec3 rB = Vec3::Zero();
   Vec3 normal = Vec3::UnitZ();   ///< unit, from A towards B
+  /// [m] where the friction rows act, relative to the contact point (tangential, usually zero): a point
+  /// standing for a patch's area carries its friction at the area's mean lever arm about the patch's
+  /// centre, so that the patch resists twisting as the whole area does
+  Vec3 frictionOffset = Vec3::Zero();
   double depth = 0.0;            ///< penetration along the normal [m] (> 0 overlapping; < 0 the gap of a
                                  ///< speculative contact, which may close but not overlap within the step)
   double slop = 0.0;             ///< penetration left uncorrected [m]

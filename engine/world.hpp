@@ -132,6 +132,8 @@ class World {
  private:
   void integrateVelocities();
   void solveContacts();
+  /// Rolling resistance of the last solve's patches, on the solver bodies' velocities.
+  void resistRolling();
   /// The materials meeting at a contact: particle a's body's and particle b's body's (or the plane's).
   [[nodiscard]] std::pair<const Material*, const Material*> contactMaterials(ParticleId a, ParticleId b,
                                                                              PlaneId plane) const;
@@ -186,6 +188,8 @@ class World {
   std::vector<std::uint32_t> pointFirst_;           // per patch: its first contact point (and the end)
   std::vector<std::uint32_t> keptContacts_;         // as PatchSet::contacts: each patch's contacts that become points
   std::vector<std::uint32_t> keptCount_;            // per patch: how many
+  /// per worker, per particle: whether it touches in the patch being made into points (0 between patches)
+  std::vector<std::vector<std::uint8_t>> touchingParticle_;
   std::vector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles
   struct alignas(64) ContactTally {  // (one per worker, each on a cache line of its own)
     std::size_t touching = 0;
@@ -197,6 +201,7 @@ class World {
   std::vector<std::vector<ConnectorId>> bodyConnectors_;    // [B]
   std::vector<std::unique_ptr<RodForces>> rodForces_;       // [B], for rigid bodies with breakable rods
   std::vector<BodyId> breakableRigid_;
+  bool anyRollingResistance_ = false;  // (a material resists rolling)
   std::vector<Vec3> loads_;                                 // [P] loads on particles of breakable bodies [N]
   std::vector<double> rodForceScratch_;
   std::vector<double> deformableForces_;                    // [C] XPBD connector forces [N]

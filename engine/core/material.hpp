@@ -11,6 +11,9 @@ struct Material {
   double density = 1000.0;    ///< [kg/m^3]; a particle's mass is density x the volume it stands for
   double restitution = 0.5;   ///< [-] in [0, 1]
   double friction = 0.5;      ///< Coulomb coefficient [-], >= 0
+  /// [-] >= 0: a rolling body meets a torque of at most this x its rolling radius x the normal force
+  /// (coefficient of rolling resistance, as in DEM's constant-torque model); 0 rolls freely
+  double rollingResistance = 0.0;
   /// Breaking thresholds of the connectors of bodies made of it, where the body sets none: rods break above
   /// this force [N], springs above this strain [-]; infinity = unbreakable.
   double rodStrength = std::numeric_limits<double>::infinity();

@@ -368,12 +368,14 @@ Quat orientation(const Ctx& ctx, const YAML::Node& n) {
 
 Material material(const Ctx& ctx, const YAML::Node& n, const std::string& name) {
   const MapReader m(ctx, n, "material '" + name + "'",
-                    {"density", "restitution", "friction", "rod_strength", "strain_limit"});
+                    {"density", "restitution", "friction", "rolling_resistance", "rod_strength", "strain_limit"});
   Material mat;
   mat.name = name;
   if (m.has("density")) mat.density = positive(ctx, m.get("density"), "density", "kg/m^3");
   if (m.has("restitution")) mat.restitution = inRange(ctx, m.get("restitution"), "restitution", 0.0, 1.0);
   if (m.has("friction")) mat.friction = nonNegative(ctx, m.get("friction"), "friction", "-");
+  if (m.has("rolling_resistance"))
+    mat.rollingResistance = nonNegative(ctx, m.get("rolling_resistance"), "rolling resistance", "-");
   if (m.has("rod_strength")) mat.rodStrength = positive(ctx, m.get("rod_strength"), "rod strength", "N");
   if (m.has("strain_limit")) mat.strainLimit = positive(ctx, m.get("strain_limit"), "spring strain limit", "-");
   return mat;
@@ -643,7 +645,7 @@ SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::p
   if (m.has("allow_initial_overlap")) s.allowInitialOverlap = boolean(ctx, m.get("allow_initial_overlap"), "allow_initial_overlap");
   if (m.has("materials")) {
     const YAML::Node mats = m.get("materials");
-    if (!mats.IsMap()) ctx.fail(mats.Mark(), "expected a map of materials {name: {density, restitution, friction, rod_strength, strain_limit}}");
+    if (!mats.IsMap()) ctx.fail(mats.Mark(), "expected a map of materials {name: {density, restitution, friction, rolling_resistance, rod_strength, strain_limit}}");
     std::set<std::string> seen;
     for (auto it = mats.begin(); it != mats.end(); ++it) {
       const std::string name = text(ctx, it->first, "material name");

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <numbers>
 
@@ -72,7 +73,81 @@ bodies:
   steps(w, 360);
   const double v = 2.0, mu = 0.5;
   EXPECT_LT(w.bodies().state[0].linearVelocity.norm(), 1e-6);
-  EXPECT_NEAR(w.bodies().state[0].position.x() - x0, v * v / (2 * mu * kG), 0.05 * v * v / (2 * mu * kG));
+  std::printf("sliding distance %.5f m, analytic %.5f m\n", w.bodies().state[0].position.x() - x0, v * v / (2 * mu * kG));
+  EXPECT_NEAR(w.bodies().state[0].position.x() - x0, v * v / (2 * mu * kG), 0.02 * v * v / (2 * mu * kG));
+}
+
+/// A crate of `side` x `side` x 0.3 m (friction 0.5) spinning at 10 rad/s about the vertical on its face, on
+/// the floor plane or on a static slab of particles: its angular deceleration over the first half of the
+/// analytic spin-down [rad/s^2].
+double spinDeceleration(double side, bool onSlab) {
+  const std::string floor = onSlab ? R"(
+  - shape: {box: {size: [1.0, 1.0, 0.2]}}
+    fill: {radius: 0.05}
+    material: m
+    kind: static
+    position: [0, 0, -0.1])"
+                                   : "";
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+materials:
+  m: {density: 700, restitution: 0.0, friction: 0.5}
+planes:
+  - {normal: [0, 0, 1], offset: )" + std::string(onSlab ? "-0.2" : "0") + R"(, material: m}
+bodies:)" + floor + R"(
+  - shape: {box: {size: [)" + test::exactNumber(side) + ", " + test::exactNumber(side) + R"(, 0.3]}}
+    fill: {radius: 0.05}
+    material: m
+    position: [0, 0, 0.15]
+    angular_velocity: [0, 0, 10]
+)");
+  const BodyState& s = w.bodies().state[onSlab ? 1 : 0];
+  const int n = 48;  // 0.2 s, about half the spin-down
+  steps(w, n);
+  return (10.0 - s.angularVelocity.z()) / (n * w.settings().dt);
+}
+
+TEST(ContactPhysics, SpinningBoxDeceleratesAsUniformPressureOverItsFace) {
+  // friction torque mu m g D over the moment m a^2 / 6, with D = a (sqrt 2 + ln(1 + sqrt 2)) / 6 the mean
+  // distance of a square's points from its centre
+  for (const double side : {0.5, 0.3}) {
+    const double d = side * (std::numbers::sqrt2 + std::log(1.0 + std::numbers::sqrt2)) / 6.0;
+    const double alpha = 0.5 * kG * d * 6.0 / (side * side);
+    for (const bool onSlab : {false, true}) {
+      SCOPED_TRACE(testing::Message() << "side " << side << (onSlab ? " on a particle slab" : " on the floor plane"));
+      const double got = spinDeceleration(side, onSlab);
+      std::printf("spin-down: side %.2f %s: %.3f rad/s^2, analytic %.3f\n", side, onSlab ? "slab" : "plane", got, alpha);
+      EXPECT_NEAR(got, alpha, 0.05 * alpha);
+    }
+  }
+}
+
+TEST(ContactPhysics, BallRollsToAStopAgainstRollingResistance) {
+  // a ball of one particle rolling at 1 m/s on a plane with rolling resistance 0.05: the couple mu_r R m g
+  // slows it at a = 5/7 mu_r g (its friction turning the couple into deceleration), so it stops after
+  // v^2 / (2 a)
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+materials:
+  m: {density: 700, restitution: 0.0, friction: 0.5, rolling_resistance: 0.05}
+planes:
+  - {normal: [0, 0, 1], offset: 0, material: m}
+bodies:
+  - shape: {particles: {positions: [[0, 0, 0]], radius: 0.1}}
+    material: m
+    position: [0, 0, 0.1]
+    velocity: [1, 0, 0]
+    angular_velocity: [0, 10, 0]
+)");
+  const double a = 5.0 / 7.0 * 0.05 * kG;
+  steps(w, 840);  // 3.5 s; it stops at 2.85 s
+  const BodyState& s = w.bodies().state[0];
+  std::printf("rolling distance %.4f m, analytic %.4f m\n", s.position.x(), 1.0 / (2.0 * a));
+  EXPECT_LT(s.linearVelocity.norm(), 1e-6);
+  EXPECT_LT(s.angularVelocity.norm(), 1e-5);
+  EXPECT_NEAR(s.position.x(), 1.0 / (2.0 * a), 0.01 / (2.0 * a));
 }
 
 /// Two crates 3 mm apart in free space (within the speculative reach), the second approaching the first at
