@@ -8,12 +8,12 @@ namespace volpar {
 namespace {
 
 /// Contact between particles a and b (world positions, radii) if they touch, or come within `margin` x
-/// (r_a + r_b) of touching (a speculative contact, negative depth).
-bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, ParticleContact& c) {
+/// (r_a + r_b) plus `sweep` [m] of touching (a speculative contact, negative depth).
+bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, double sweep, ParticleContact& c) {
   const Vec3 d = p.position[b.index()] - p.position[a.index()];
   const double rsum = p.radius[a.index()] + p.radius[b.index()];
   const double dist2 = d.squaredNorm();
-  const double reach = rsum * (1.0 + margin);
+  const double reach = rsum * (1.0 + margin) + sweep;
   if (!(dist2 < reach * reach)) return false;
   const double dist = std::sqrt(dist2);
   c.a = a;
@@ -143,11 +143,28 @@ void ContactFinder::forCells(const BodyGrid& g, const BodyState& s, const Aabb& 
     }
 }
 
+double ContactFinder::sweepReach(const BodyStore& bodies, BodyId a, BodyId b, const Vec3& n) const {
+  if (sweepTime_ <= 0.0) return 0.0;
+  const BodyState& sa = bodies.state[a.index()];
+  double closing = sa.angularVelocity.norm() * extent_[a.index()];
+  double reach = margin_ * grids_[a.index()].maxRadius;
+  if (b.valid()) {
+    const BodyState& sb = bodies.state[b.index()];
+    closing += (sb.linearVelocity - sa.linearVelocity).norm() + sb.angularVelocity.norm() * extent_[b.index()];
+    reach += margin_ * grids_[b.index()].maxRadius;
+  } else {
+    closing += std::max(0.0, -n.dot(sa.linearVelocity));
+  }
+  // (a finite, bounded reach: a body flung absurdly fast still searches no more than its own box's way)
+  const double sweep = std::max(0.0, closing * sweepTime_ - reach);
+  return std::isfinite(sweep) ? sweep : 0.0;
+}
+
 void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, BodyId a, BodyId b,
-                               std::span<const Aabb> boxes, double skin, ContactSet& out,
+                               std::span<const Aabb> boxes, double sweep, double skin, ContactSet& out,
                                std::vector<std::pair<ParticleId, ParticleId>>* listed) const {
-  // the boxes grown by the speculative reach (and the skin)
-  const double grow = margin_ * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius) + skin;
+  // the boxes grown by the speculative reach (and the sweep and the skin)
+  const double grow = margin_ * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius) + sweep + skin;
   const Aabb boxA = boxes[a.index()].expanded(grow);
   const Aabb boxB = boxes[b.index()].expanded(grow);
   const Aabb overlap{boxA.lo.cwiseMax(boxB.lo), boxA.hi.cwiseMin(boxB.hi)};
@@ -164,8 +181,8 @@ void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, 
   forCells(gi, bodies.state[it.index()], overlap.expanded(gi.maxRadius), [&](ParticleId pi) {
     const Vec3& x = p.position[pi.index()];
     // (a hair wider than the largest sum of radii, so rounding in the frame change cannot drop a pair)
-    const double reach = (p.radius[pi.index()] + go.maxRadius) * (1.0 + margin_ + 1e-9) + skin;
-    if (!Aabb::sphere(x, p.radius[pi.index()] + skin).overlaps(iterateA ? boxB : boxA)) return;
+    const double reach = (p.radius[pi.index()] + go.maxRadius) * (1.0 + margin_ + 1e-9) + sweep + skin;
+    if (!Aabb::sphere(x, p.radius[pi.index()] + sweep + skin).overlaps(iterateA ? boxB : boxA)) return;
     // the particle's reach in the other grid's frame
     const Vec3 y = go.worldFrame ? x : Vec3(rtOther * (x - so.position));
     Eigen::Vector3i lo, hi;
@@ -183,10 +200,10 @@ void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, 
             const ParticleId q = go.items[k];
             const ParticleId pa = iterateA ? pi : q, pb = iterateA ? q : pi;
             if (listed) {
-              const double rs = (p.radius[pa.index()] + p.radius[pb.index()]) * (1.0 + margin_) + skin;
+              const double rs = (p.radius[pa.index()] + p.radius[pb.index()]) * (1.0 + margin_) + sweep + skin;
               if ((p.position[pb.index()] - p.position[pa.index()]).squaredNorm() < rs * rs) listed->emplace_back(pa, pb);
             }
-            if (touch(p, pa, pb, margin_, c)) out.contacts.push_back(c);
+            if (touch(p, pa, pb, margin_, sweep, c)) out.contacts.push_back(c);
           }
       }
   });
@@ -197,8 +214,9 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
   ContactSet& out = w.out;
   const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
   const bool rigid = !grids_[a.index()].worldFrame && !grids_[b.index()].worldFrame;
+  const double swept = sweepReach(bodies, a, b);
   if (!reuse_ || !rigid) {
-    searchPair(p, bodies, a, b, boxes, 0.0, out, nullptr);
+    searchPair(p, bodies, a, b, boxes, swept, 0.0, out, nullptr);
     sortGroup(out, first);
   } else {
     // B's pose in A's frame
@@ -215,7 +233,7 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
     if (reuse) {
       // how far any particle pair's distance can have changed since the list was made
       const double turned = 2.0 * (it->relRotation.conjugate() * relRotation).vec().norm();
-      reuse = turned * extent_[b.index()] + (relPosition - it->relPosition).norm() < it->skin;
+      reuse = turned * extent_[b.index()] + (relPosition - it->relPosition).norm() < it->skin && swept <= it->sweep;
     }
     PairList list;
     list.a = a.value;
@@ -226,18 +244,21 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
       list.relRotation = it->relRotation;
       list.relPosition = it->relPosition;
       list.skin = it->skin;
+      list.sweep = it->sweep;
       ParticleContact c;
       for (std::uint32_t k = it->first; k < it->first + it->count; ++k) {
         const auto& [pa, pb] = cache_.pairs[k];
         w.cache.pairs.emplace_back(pa, pb);
-        if (touch(p, pa, pb, margin_, c)) out.contacts.push_back(c);
+        if (touch(p, pa, pb, margin_, swept, c)) out.contacts.push_back(c);
       }
     } else {
       list.relRotation = relRotation;
       list.relPosition = relPosition;
       list.skin = 0.1 * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius);
+      // (a pair speeding up lists a little farther than it needs, so that it is not searched every step)
+      list.sweep = 1.5 * swept;
       w.found.clear();
-      searchPair(p, bodies, a, b, boxes, list.skin, out, &w.found);
+      searchPair(p, bodies, a, b, boxes, swept, list.skin + (list.sweep - swept), out, &w.found);
       sortGroup(out, first);
       std::sort(w.found.begin(), w.found.end());
       w.cache.pairs.insert(w.cache.pairs.end(), w.found.begin(), w.found.end());
@@ -258,7 +279,7 @@ void ContactFinder::selfContacts(const ParticleStore& p, BodyId id, ContactSet& 
     const Vec3& x = p.position[pi.index()];
     forCells(g, BodyState{}, Aabb::sphere(x, (p.radius[pi.index()] + g.maxRadius) * (1.0 + margin_)), [&](ParticleId q) {
       if (!(pi < q) || connected(pi, q)) return;
-      if (touch(p, pi, q, margin_, c)) out.contacts.push_back(c);
+      if (touch(p, pi, q, margin_, 0.0, c)) out.contacts.push_back(c);
     });
   }
   const auto count = static_cast<std::uint32_t>(out.contacts.size()) - first;
@@ -270,10 +291,11 @@ void ContactFinder::selfContacts(const ParticleStore& p, BodyId id, ContactSet& 
 void ContactFinder::planeContacts(const ParticleStore& p, const BodyStore& bodies, BodyId id, PlaneId plane,
                                   const Plane& pl, ContactSet& out) const {
   const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
+  const double swept = sweepReach(bodies, id, BodyId{}, pl.normal);
   for (const ParticleId pi : bodies.info[id.index()].particles) {
     const double r = p.radius[pi.index()];
     const double height = pl.normal.dot(p.position[pi.index()]) - pl.offset;
-    if (!(height < r * (1.0 + margin_))) continue;
+    if (!(height < r * (1.0 + margin_) + swept)) continue;
     ParticleContact c;
     c.a = pi;
     c.plane = plane;

@@ -6,7 +6,11 @@
 // when its centre is less than its radius above it. Pairs that are within a small margin of touching
 // (`setMargin`, a fraction of r_a + r_b) are reported too, as speculative contacts with a negative depth:
 // they keep a resting contact set stable (a stack rocking by a hair does not lose and regain contacts) and
-// let the solver stop an approaching pair exactly at contact. Inside a candidate body pair the search goes through
+// let the solver stop an approaching pair exactly at contact. Fast bodies reach farther: with a step time
+// (`setSweepTime`), a pair of bodies that could close more than that margin within the step (their
+// relative speed plus each one's spin times its extent, times the step) reports every particle pair
+// that close, so that the solver sees a wall before a particle can jump through it in one step
+// (speculative contacts as continuous collision, after Box2D v3 and Jolt). Inside a candidate body pair the search goes through
 // a uniform grid of each body's particles, built once in the body frame for rigid and static bodies and
 // every step in the world frame for deformable ones: only the grid cells inside the overlap of the two
 // bodies' boxes are visited, and each particle there looks up the few cells of the other body within its
@@ -69,6 +73,8 @@ class ContactFinder {
   /// Speculative reach as a fraction of r_a + r_b (0: touching pairs only).
   void setMargin(double fraction) { margin_ = fraction; }
   [[nodiscard]] double margin() const { return margin_; }
+  /// The step [s] over which a pair's relative motion widens its reach (0: the margin alone).
+  void setSweepTime(double dt) { sweepTime_ = dt; }
   /// Connector adjacency must be rebuilt (connectors added or broken).
   void connectorsChanged() { adjacencyDirty_ = true; }
   /// Rebuilds the connector adjacency now (after connectors broke).
@@ -127,6 +133,7 @@ class ContactFinder {
     Quat relRotation = Quat::Identity();
     Vec3 relPosition = Vec3::Zero();
     double skin = 0.0;
+    double sweep = 0.0;                           // the reach beyond the margin the list was made with [m]
     std::uint32_t first = 0, count = 0;           // range in PairCache::pairs
   };
   struct PairCache {
@@ -150,10 +157,13 @@ class ContactFinder {
     std::size_t cursor = 0;  // the last step's lists are walked in step with the (sorted) body pairs
   };
 
-  /// Grid search of a body pair: contacts into `out` (unsorted); with `listed`, every pair within the
-  /// reach plus `skin` into it as well.
+  /// How much farther than the margin [m] a pair of particles of bodies a and b (b invalid: a plane of
+  /// normal n) can close within the sweep time.
+  [[nodiscard]] double sweepReach(const BodyStore& bodies, BodyId a, BodyId b, const Vec3& n = Vec3::Zero()) const;
+  /// Grid search of a body pair: contacts within the reach plus `sweep` into `out` (unsorted); with
+  /// `listed`, every pair within that plus `skin` into it as well.
   void searchPair(const ParticleStore& particles, const BodyStore& bodies, BodyId a, BodyId b, std::span<const Aabb> boxes,
-                  double skin, ContactSet& out, std::vector<std::pair<ParticleId, ParticleId>>* listed) const;
+                  double sweep, double skin, ContactSet& out, std::vector<std::pair<ParticleId, ParticleId>>* listed) const;
   void bodyPair(const ParticleStore& particles, const BodyStore& bodies, BodyId a, BodyId b,
                 std::span<const Aabb> boxes, Chunk& w) const;
   void selfContacts(const ParticleStore& particles, BodyId id, ContactSet& out) const;
@@ -171,6 +181,7 @@ class ContactFinder {
   std::vector<ParticleId> adjacency_;          // sorted per particle
   bool adjacencyDirty_ = true;
   double margin_ = 0.0;
+  double sweepTime_ = 0.0;
   std::vector<std::uint32_t> fill_;  // counting-sort scratch, reused
 };
 

@@ -13,6 +13,21 @@ namespace volpar {
 namespace {
 
 constexpr std::uint32_t kFixed = ContactPointInput::kFixed;
+
+/// Relative velocity of a point's B side with respect to its A side along its normal (negative: approaching).
+double normalVelocity(const ContactPointInput& in, const SolverBody* a, const SolverBody* b) {
+  double vn = 0.0;
+  if (b) vn += in.normal.dot(b->v) + in.rB.cross(in.normal).dot(b->w);
+  if (a) vn -= in.normal.dot(a->v) + in.rA.cross(in.normal).dot(a->w);
+  return vn;
+}
+
+/// Whether a point whose sides approach at -vn bounces, and whether it does so only once its gap has closed:
+/// a speculative point that closes its gap within the step arrives at contact this step and bounces in the
+/// next (with the speed it arrived with, kept with its warm-starting impulses), so that it bounces from the
+/// surface and not from where its gap was found.
+bool bounces(const ContactPointInput& in, double vn, double threshold) { return vn < -threshold && in.restitution > 0.0; }
+bool arrives(const ContactPointInput& in, double vn, double dt) { return in.depth < 0.0 && -vn * dt >= -in.depth; }
 using V4 = Eigen::Vector4f;
 
 /// A deterministic tangent basis for a unit normal.
@@ -402,6 +417,11 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     for (int l = 0; l < 4; ++l) {
       const Cached* c = b.row[static_cast<std::size_t>(l)] == kNoRow ? nullptr : cached(keys[l]);
       if (!c) continue;
+      // (a point that arrived at contact in the last step bounces now, with the speed it arrived with)
+      if (c->lambdaT.w() > 0.0f) {
+        const ContactPointInput& in = points[order_[b.row[static_cast<std::size_t>(l)]]];
+        b.targetN[l] = std::max(b.targetN[l], static_cast<float>(in.restitution) * c->lambdaT.w());
+      }
       b.lambdaN[l] = c->lambdaN;
       b.lambdaT1[l] = dotDirection(c->lambdaT, b.t1, l);
       b.lambdaT2[l] = dotDirection(c->lambdaT, b.t2, l);
@@ -469,13 +489,13 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
         keys[4 * j + lane] = in.key;
         b.friction[l] = static_cast<float>(in.friction);
         // relative velocity of B with respect to A along n: negative when approaching
-        double vn = 0.0;
-        if (sb) vn += in.normal.dot(sb->v) + in.rB.cross(in.normal).dot(sb->w);
-        if (sa) vn -= in.normal.dot(sa->v) + in.rA.cross(in.normal).dot(sa->w);
-        // bounce above the threshold; otherwise a speculative contact may close its gap this step, no more
-        const double target = vn < -settings_.restitutionThreshold && in.restitution > 0.0 ? -in.restitution * vn
-                              : in.depth < 0.0                                           ? in.depth / dt
-                                                                                         : 0.0;
+        const double vn = normalVelocity(in, sa, sb);
+        // bounce above the threshold (a gap first closes: see bounces()); otherwise a speculative contact
+        // may close its gap this step, no more
+        const bool deferred = settings_.warmStart && in.depth < 0.0;
+        const double target = bounces(in, vn, settings_.restitutionThreshold) && !deferred ? -in.restitution * vn
+                              : in.depth < 0.0                                              ? in.depth / dt
+                                                                                            : 0.0;
         b.targetN[l] = static_cast<float>(target);
         b.biasP[l] = static_cast<float>(
             std::min(settings_.baumgarte * std::max(in.depth - in.slop, 0.0) / dt, settings_.maxCorrectionSpeed));
@@ -502,7 +522,13 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       const float l1 = b.lambdaT1[l], l2 = b.lambdaT2[l], ln = b.lambdaN[l];
       const float tx = l1 * b.t1.dx[l] + l2 * b.t2.dx[l], ty = l1 * b.t1.dy[l] + l2 * b.t2.dy[l],
                   tz = l1 * b.t1.dz[l] + l2 * b.t2.dz[l];
-      next[l] = Cached{ln, V4(tx, ty, tz, 0.0f)};
+      // (and the speed a point arriving at contact within this step arrives with, for its bounce)
+      float impact = 0.0f;
+      if (in.restitution > 0.0 && settings_.warmStart && in.depth < 0.0) {
+        const double vn = normalVelocity(in, in.a == kFixed ? nullptr : &bodies[in.a], in.b == kFixed ? nullptr : &bodies[in.b]);
+        if (bounces(in, vn, settings_.restitutionThreshold) && arrives(in, vn, dt)) impact = static_cast<float>(-vn);
+      }
+      next[l] = Cached{ln, V4(tx, ty, tz, impact)};
       const Vec3 impulse(static_cast<double>(ln * b.n.dx[l] + tx), static_cast<double>(ln * b.n.dy[l] + ty),
                          static_cast<double>(ln * b.n.dz[l] + tz));
       const Vec3 tangential(static_cast<double>(tx), static_cast<double>(ty), static_cast<double>(tz));

@@ -132,7 +132,7 @@ class ContactSolver {
   /// The last step's impulses, by batch lane, and an open-addressing hash table from warm-starting key to lane.
   struct Cached {
     float lambdaN;
-    V4 lambdaT;  // world tangential impulse
+    V4 lambdaT;  // world tangential impulse; w: the speed a point arriving at contact in that step arrived with
   };
   static constexpr std::uint32_t kEmpty = 0xffffffffu;
 

@@ -29,6 +29,7 @@ World::World(const WorldSettings& settings) : settings_(settings) {
   solver.iterations = settings.solverIterations;
   solver.positionIterations = settings.solverIterations;
   contactFinder_.setMargin(settings_.contactMargin);
+  contactFinder_.setSweepTime(settings_.dt);
   solver_.setSettings(solver);
 }
 

@@ -329,6 +329,7 @@ TEST(TemporalCoherence, ReusedCandidateListsGiveExactlyTheContactsOfAFreshSearch
   for (std::size_t i = 0; i < w.bodies().size(); ++i) fresh.addBody(BodyId(i), w.particles(), w.bodies());
   fresh.setReuse(false);
   fresh.setMargin(w.settings().contactMargin);
+  fresh.setSweepTime(w.settings().dt);
   ContactSet set;
   std::size_t reused = 0, compared = 0;
   for (int step = 0; step < 600; ++step) {

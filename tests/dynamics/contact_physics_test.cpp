@@ -150,6 +150,64 @@ bodies:
   EXPECT_NEAR(s.position.x(), 1.0 / (2.0 * a), 0.01 / (2.0 * a));
 }
 
+/// A projectile (one particle, or a 0.2 m box of eight) fired at `speed` along x at a wall one particle thick
+/// (1.2 m square, static or free), starting `start` m before it, off the wall's lattice lines: whether it
+/// ever got past the wall, and the deepest overlap [m] of its particles with the wall's at the end, at rest.
+struct Shot {
+  bool passed = false;
+  double overlap = 0.0;
+};
+Shot fireAtWall(double speed, bool box, bool freeWall, double start) {
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+gravity: [0, 0, 0]
+materials:
+  m: {density: 1000, restitution: 0.0, friction: 0.3}
+bodies:
+  - shape: {box: {size: [0.1, 1.2, 1.2]}}
+    fill: {radius: 0.05}
+    material: m
+    position: [0, 0, 0]
+)" + std::string(freeWall ? "" : "    kind: static\n") +
+                                  "  - shape: " +
+                                  (box ? "{box: {size: [0.2, 0.2, 0.2]}}\n    fill: {radius: 0.05}\n"
+                                       : "{particles: {positions: [[0, 0, 0]], radius: 0.05}}\n") +
+                                  R"(    material: m
+    position: [)" + test::exactNumber(-start) +
+                                  R"(, 0.013, 0.021]
+    velocity: [)" + test::exactNumber(speed) + R"(, 0, 0]
+)");
+  Shot shot;
+  for (int i = 0; i < 240; ++i) {
+    EXPECT_EQ(w.step(), StepStatus::Ok);
+    shot.passed = shot.passed || w.bodies().state[1].position.x() > w.bodies().state[0].position.x();
+  }
+  const ParticleStore& p = w.particles();
+  for (std::size_t a = 0; a < p.size(); ++a)
+    for (std::size_t b = 0; b < p.size(); ++b)
+      if (p.body[a].index() == 0 && p.body[b].index() == 1)
+        shot.overlap = std::max(shot.overlap, p.radius[a] + p.radius[b] - (p.position[b] - p.position[a]).norm());
+  return shot;
+}
+
+TEST(ContactPhysics, FastProjectilesNeitherPassNorLodgeInAWallOneParticleThick) {
+  // a particle at 100 m/s moves 0.42 m, eight diameters, in a step: the speculative contacts reach as far
+  // as the pair can close within the step, so the wall is seen before it can be jumped, whatever the phase
+  // of the steps at which it is reached
+  for (const double speed : {20.0, 40.0, 100.0})
+    for (const bool box : {false, true})
+      for (const bool freeWall : {false, true})
+        for (int phase = 0; phase < 4; ++phase) {
+          const double start = 1.0 + phase * speed / 240.0 / 4.0;
+          SCOPED_TRACE(testing::Message() << (box ? "box" : "particle") << " at " << speed << " m/s, "
+                                          << (freeWall ? "free" : "static") << " wall, phase " << phase);
+          const Shot shot = fireAtWall(speed, box, freeWall, start);
+          EXPECT_FALSE(shot.passed);
+          EXPECT_LT(shot.overlap, 0.1 * 0.05);
+        }
+}
+
 /// Two crates 3 mm apart in free space (within the speculative reach), the second approaching the first at
 /// `speed`: the gap between their particles' surfaces after each of `n` steps.
 std::vector<double> approachGaps(double speed, int n, std::vector<std::size_t>& points) {
