@@ -73,9 +73,10 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
       p.position[a] -= wa * dLambda * n;
       p.position[b] += wb * dLambda * n;
       if (!in.forces.empty()) {
-        // XPBD's multiplier is an impulse per substep times h: the force is lambda / h^2
-        const double f = c.kind[k] == ConnectorKind::Rod ? std::abs(dLambda) / (h * h) : c.stiffness[k] * std::abs(constraint);
-        in.forces[k] = std::max(in.forces[k], f);
+        // XPBD's multiplier is an impulse per substep times h: the force is lambda / h^2 (a positive
+        // multiplier pushes the ends apart: compression); the largest in magnitude, tension positive
+        const double f = c.kind[k] == ConnectorKind::Rod ? -dLambda / (h * h) : c.stiffness[k] * constraint;
+        if (std::abs(f) > std::abs(in.forces[k])) in.forces[k] = f;
       }
     }
     // contacts: push particles out. The correction is left out of the velocity (it must not bounce the

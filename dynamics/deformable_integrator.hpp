@@ -43,8 +43,8 @@ struct DeformableStepInput {
   /// Position corrections [m] per particle (indexed like the particle store) that move particles without
   /// giving them velocity (split impulses); empty for none.
   std::span<const Vec3> shift;
-  /// If not empty (sized like the connector store): the largest force [N] each listed connector carried in
-  /// any substep (rods: their constraint force; springs: k |stretch|).
+  /// If not empty (sized like the connector store): the force [N] of largest magnitude each listed connector
+  /// carried in any substep, tension positive (rods: their constraint force; springs: k x stretch).
   std::span<double> forces;
   /// Contacts kept in every substep: a contact's position correction is left out of the velocity, and the
   /// relative velocity of its particles into it is removed (inelastically, conserving momentum).

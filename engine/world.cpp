@@ -191,7 +191,8 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   } else {
     if (def.kind == BodyKind::Rigid) rigidBodies_.push_back(id);
     updateRigidParticles(id);
-    if (def.kind == BodyKind::Rigid && std::isfinite(def.connectors.breakLimit) && !bodyConnectors_[id.index()].empty()) {
+    const bool breakable = std::isfinite(def.connectors.breakLimit) || std::isfinite(def.connectors.compressionLimit);
+    if (def.kind == BodyKind::Rigid && breakable && !bodyConnectors_[id.index()].empty()) {
       rodForces_[id.index()] = std::make_unique<RodForces>();
       rodForces_[id.index()]->build(bodies_.info[id.index()], particles_, connectors_, bodyConnectors_[id.index()]);
       breakableRigid_.push_back(id);
@@ -276,7 +277,8 @@ void World::applyBreakage() {
     const std::span<const ConnectorId> rods = rf->rods();
     for (std::size_t r = 0; r < rods.size(); ++r) {
       const std::size_t c = rods[r].index();
-      if (!(std::abs(rodForceScratch_[r]) > connectors_.breakLimit[c])) continue;
+      // (tension above the tensile strength, or compression above the compressive strength)
+      if (!(rodForceScratch_[r] > connectors_.breakLimit[c] || -rodForceScratch_[r] > connectors_.compressionLimit[c])) continue;
       connectors_.broken[c] = 1;
       opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
       breakEvents_.push_back({stepIndex_ + 1, rods[r], connectors_.a[c], connectors_.b[c], id, ConnectorKind::Rod, rodForceScratch_[r]});
@@ -301,15 +303,19 @@ void World::applyBreakage() {
   // deformable bodies: springs past their strain limit, rods past their strength
   for (const ConnectorId cid : deformableConnectors_) {
     const std::size_t c = cid.index();
-    if (connectors_.broken[c] || !std::isfinite(connectors_.breakLimit[c])) continue;
+    if (connectors_.broken[c] || (!std::isfinite(connectors_.breakLimit[c]) && !std::isfinite(connectors_.compressionLimit[c])))
+      continue;
     double value;
+    bool breaks;
     if (connectors_.kind[c] == ConnectorKind::Spring) {
       const double len = (particles_.position[connectors_.b[c].index()] - particles_.position[connectors_.a[c].index()]).norm();
       value = std::abs(len / connectors_.restLength[c] - 1.0);
+      breaks = value > connectors_.breakLimit[c];
     } else {
-      value = deformableForces_[c];
+      value = deformableForces_[c];  // (tension positive)
+      breaks = value > connectors_.breakLimit[c] || -value > connectors_.compressionLimit[c];
     }
-    if (!(value > connectors_.breakLimit[c])) continue;
+    if (!breaks) continue;
     connectors_.broken[c] = 1;
     opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
     anyBroken = true;

@@ -1,5 +1,7 @@
 #include "engine/core/connector_store.hpp"
 
+#include <limits>
+
 namespace volpar {
 
 ConnectorId ConnectorStore::add(ParticleId pa, ParticleId pb, double rest, const ConnectorParams& params) {
@@ -11,6 +13,7 @@ ConnectorId ConnectorStore::add(ParticleId pa, ParticleId pb, double rest, const
   stiffness.push_back(params.stiffness);
   damping.push_back(params.damping);
   breakLimit.push_back(params.breakLimit);
+  compressionLimit.push_back(params.kind == ConnectorKind::Rod ? params.compressionLimit : std::numeric_limits<double>::infinity());
   broken.push_back(0);
   return id;
 }
@@ -23,6 +26,7 @@ void ConnectorStore::reserve(std::size_t count) {
   stiffness.reserve(count);
   damping.reserve(count);
   breakLimit.reserve(count);
+  compressionLimit.reserve(count);
   broken.reserve(count);
 }
 

@@ -19,8 +19,10 @@ struct ConnectorParams {
   ConnectorKind kind = ConnectorKind::Rod;
   double stiffness = 0.0;  ///< [N/m], springs only
   double damping = 0.0;    ///< [N s/m], springs only
-  /// Breaking threshold: force [N] for rods, strain [-] for springs; infinity = unbreakable.
+  /// Breaking threshold: tensile force [N] for rods, strain [-] for springs; infinity = unbreakable.
   double breakLimit = std::numeric_limits<double>::infinity();
+  /// Rods only: the compressive force [N] above which they break (crush); infinity = never in compression.
+  double compressionLimit = std::numeric_limits<double>::infinity();
 };
 
 struct ConnectorStore {
@@ -30,7 +32,8 @@ struct ConnectorStore {
   std::vector<double> restLength;   ///< [m], [C]
   std::vector<double> stiffness;    ///< [N/m], [C]
   std::vector<double> damping;      ///< [N s/m], [C]
-  std::vector<double> breakLimit;   ///< force [N] (rod) or strain [-] (spring), [C]
+  std::vector<double> breakLimit;   ///< tensile force [N] (rod) or strain [-] (spring), [C]
+  std::vector<double> compressionLimit;  ///< compressive force [N] (rod; infinity for springs), [C]
   std::vector<std::uint8_t> broken; ///< 1 once broken, [C]
 
   [[nodiscard]] std::size_t size() const { return a.size(); }

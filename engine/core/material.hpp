@@ -17,6 +17,9 @@ struct Material {
   /// Breaking thresholds of the connectors of bodies made of it, where the body sets none: rods break above
   /// this force [N], springs above this strain [-]; infinity = unbreakable.
   double rodStrength = std::numeric_limits<double>::infinity();
+  /// Rods of bodies made of it break in compression above this force [N]; 0: ten times rodStrength (brittle
+  /// solids are about ten times stronger in compression than in tension).
+  double rodCompressiveStrength = 0.0;
   double strainLimit = std::numeric_limits<double>::infinity();
 };
 

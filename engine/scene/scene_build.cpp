@@ -17,6 +17,9 @@ namespace volpar {
 
 namespace {
 
+/// Where only a tensile strength is given, rods crush at this multiple of it.
+constexpr double kCompressiveOverTensile = 10.0;
+
 Error at(const SceneDesc& desc, const SourceMark& mark, const std::string& message) {
   return Error{desc.path, mark.line, mark.column, message};
 }
@@ -273,10 +276,15 @@ Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options
           def.linearVelocity = b.velocity;
           def.angularVelocity = b.angularVelocity;
           def.connectors = b.connectors;
-          if (!std::isfinite(def.connectors.breakLimit) && b.kind != BodyKind::Static) {
-            // the material's threshold where the body sets none
+          if (b.kind != BodyKind::Static) {
+            // the material's thresholds where the body sets none; rods that break in tension crush at ten
+            // times that unless a compressive strength is given
             const Material& mat = desc.materials.at(b.material);
-            def.connectors.breakLimit = def.connectors.kind == ConnectorKind::Spring ? mat.strainLimit : mat.rodStrength;
+            const bool rods = def.connectors.kind == ConnectorKind::Rod;
+            if (!std::isfinite(def.connectors.breakLimit)) def.connectors.breakLimit = rods ? mat.rodStrength : mat.strainLimit;
+            if (rods && !std::isfinite(def.connectors.compressionLimit))
+              def.connectors.compressionLimit =
+                  mat.rodCompressiveStrength > 0.0 ? mat.rodCompressiveStrength : kCompressiveOverTensile * def.connectors.breakLimit;
           }
           def.particleMass = b.particleMass;
           def.totalMass = b.mass;

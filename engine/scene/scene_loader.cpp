@@ -368,7 +368,8 @@ Quat orientation(const Ctx& ctx, const YAML::Node& n) {
 
 Material material(const Ctx& ctx, const YAML::Node& n, const std::string& name) {
   const MapReader m(ctx, n, "material '" + name + "'",
-                    {"density", "restitution", "friction", "rolling_resistance", "rod_strength", "strain_limit"});
+                    {"density", "restitution", "friction", "rolling_resistance", "rod_strength",
+                     "rod_compressive_strength", "strain_limit"});
   Material mat;
   mat.name = name;
   if (m.has("density")) mat.density = positive(ctx, m.get("density"), "density", "kg/m^3");
@@ -377,6 +378,8 @@ Material material(const Ctx& ctx, const YAML::Node& n, const std::string& name) 
   if (m.has("rolling_resistance"))
     mat.rollingResistance = nonNegative(ctx, m.get("rolling_resistance"), "rolling resistance", "-");
   if (m.has("rod_strength")) mat.rodStrength = positive(ctx, m.get("rod_strength"), "rod strength", "N");
+  if (m.has("rod_compressive_strength"))
+    mat.rodCompressiveStrength = positive(ctx, m.get("rod_compressive_strength"), "rod compressive strength", "N");
   if (m.has("strain_limit")) mat.strainLimit = positive(ctx, m.get("strain_limit"), "spring strain limit", "-");
   return mat;
 }
@@ -507,10 +510,13 @@ ConnectorParams connectors(const Ctx& ctx, const YAML::Node& n, BodyKind kind) {
   if (m.has("rods")) {
     const YAML::Node r = m.get("rods");
     if (r.IsNull() || (r.IsMap() && r.size() == 0)) return c;
-    const MapReader rm(ctx, r, "rods", {"strength"});
-    if (rm.has("strength") && kind == BodyKind::Static)
-      ctx.fail(rm.keyMark("strength"), "static bodies never break; give the rods a strength on a rigid or deformable body");
+    const MapReader rm(ctx, r, "rods", {"strength", "compressive_strength"});
+    for (const char* key : {"strength", "compressive_strength"})
+      if (rm.has(key) && kind == BodyKind::Static)
+        ctx.fail(rm.keyMark(key), "static bodies never break; give the rods a strength on a rigid or deformable body");
     if (rm.has("strength")) c.breakLimit = positive(ctx, rm.get("strength"), "rod strength", "N");
+    if (rm.has("compressive_strength"))
+      c.compressionLimit = positive(ctx, rm.get("compressive_strength"), "rod compressive strength", "N");
     return c;
   }
   if (kind != BodyKind::Deformable)
@@ -645,7 +651,7 @@ SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::p
   if (m.has("allow_initial_overlap")) s.allowInitialOverlap = boolean(ctx, m.get("allow_initial_overlap"), "allow_initial_overlap");
   if (m.has("materials")) {
     const YAML::Node mats = m.get("materials");
-    if (!mats.IsMap()) ctx.fail(mats.Mark(), "expected a map of materials {name: {density, restitution, friction, rolling_resistance, rod_strength, strain_limit}}");
+    if (!mats.IsMap()) ctx.fail(mats.Mark(), "expected a map of materials {name: {density, restitution, friction, rolling_resistance, rod_strength, rod_compressive_strength, strain_limit}}");
     std::set<std::string> seen;
     for (auto it = mats.begin(); it != mats.end(); ++it) {
       const std::string name = text(ctx, it->first, "material name");

@@ -43,6 +43,28 @@ std::int64_t firstBreak(World& w, int steps) {
   return first;
 }
 
+/// Ten 0.1 kg particles stacked in a column on the floor (spacing 0.1 m, radius 0.05 m), one rigid body
+/// whose rods are given `rods` (a connectors map): its bottom rod carries the weight of the nine particles
+/// above, 8.829 N, in compression. Returns whether any rod broke within 0.5 s.
+bool columnBreaks(const std::string& rods) {
+  std::vector<Vec3> xs;
+  for (int i = 0; i < 10; ++i) xs.emplace_back(0.0, 0.0, 0.05 + 0.1 * i);
+  World w = test::worldFromString("dt: 0.004166666666666667\nsteps: 1\nplanes:\n  - {normal: [0, 0, 1], offset: 0}\n"
+                                  "bodies:\n  - name: column\n    particle_mass: 0.1\n    connectors: {rods: " + rods +
+                                  "}\n    shape:\n      particles: {radius: 0.05, positions: [" + test::positionList(xs) + "]}\n");
+  return firstBreak(w, 120) != 0;
+}
+
+TEST(Breakage, RodsBreakInCompressionAtTheirCompressiveStrengthNotTheirTensile) {
+  const double load = 9 * 0.1 * 9.81;
+  // far weaker in tension than the load, but it is compression
+  EXPECT_FALSE(columnBreaks("{strength: 1, compressive_strength: " + test::exactNumber(1.01 * load) + "}"));
+  EXPECT_TRUE(columnBreaks("{strength: 1, compressive_strength: " + test::exactNumber(0.99 * load) + "}"));
+  // given only a tensile strength, rods crush at ten times it
+  EXPECT_FALSE(columnBreaks("{strength: " + test::exactNumber(0.101 * load) + "}"));
+  EXPECT_TRUE(columnBreaks("{strength: " + test::exactNumber(0.099 * load) + "}"));
+}
+
 TEST(Breakage, SpinningChainHoldsBelowItsStrength) {
   World w = spinningChain(1.01 * kMiddleTension);
   ASSERT_EQ(w.connectors().size(), 9u);
@@ -128,7 +150,7 @@ TEST(Breakage, WallStandsUnderItsOwnWeightAndShattersWhenTheBallHits) {
   EXPECT_LE(first, 40);
   std::size_t alive = 0;
   for (const BodyInfo& info : w.bodies().info) alive += info.alive ? 1 : 0;
-  EXPECT_GT(alive, 20u);
+  EXPECT_GT(alive, 10u);  // (pieces, not one crack; its rods crush only at ten times their tensile strength)
   EXPECT_FALSE(w.bodies().info[0].alive);
 }
 
