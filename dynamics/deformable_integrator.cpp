@@ -33,6 +33,10 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
   touchNormal_.resize(in.contacts.size());
   for (const ParticleId id : in.particles) push_[id.index()] = Vec3::Zero();
   for (Vec3& j : in.contactImpulses) j = Vec3::Zero();
+  for (Vec3& m : in.contactMoments) m = Vec3::Zero();
+  const bool moments = !in.contactMoments.empty();
+  std::vector<Vec3>& pushed = work.pushed;  // per contact: this substep's position correction of its particle
+  pushed.resize(in.contacts.size());
   if (!in.shift.empty())
     for (const ParticleId id : in.particles) p.position[id.index()] += in.shift[id.index()];
   if (!in.forces.empty())
@@ -57,8 +61,13 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
       if (wa + wb == 0.0) continue;
       const Vec3 d = p.position[b] - p.position[a];
       const double len = d.norm();
-      if (len < 1e-15) continue;
-      const Vec3 n = d / len;
+      // (projected along the connector as it lay at the start of the substep: the correction, an impulse
+      // m dx / h acting where the particles were then, is then central and keeps the angular momentum
+      // exactly)
+      const Vec3 before = scratch[b] - scratch[a];
+      const double beforeLen = before.norm();
+      if (len < 1e-15 || beforeLen < 1e-15) continue;
+      const Vec3 n = before / beforeLen;
       const double constraint = len - c.restLength[k];
       double alphaTilde = 0.0;
       double gamma = 0.0;
@@ -84,6 +93,7 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
     for (std::size_t k = 0; k < in.contacts.size(); ++k) {
       const DeformableContact& ct = in.contacts[k];
       touching_[k] = 0;
+      pushed[k] = Vec3::Zero();
       const std::size_t i = ct.p.index();
       const double wp = p.invMass[i];
       const double wo = ct.other.valid() && !ct.otherFixed ? p.invMass[ct.other.index()] : 0.0;
@@ -114,6 +124,7 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
       const Vec3 dp = n * (deficit * wp / (wp + wo));
       p.position[i] += dp;
       push_[i] += dp;
+      pushed[k] = dp;
       if (wo > 0.0) {
         const Vec3 dq = -n * (deficit * wo / (wp + wo));
         p.position[ct.other.index()] += dq;
@@ -135,7 +146,12 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
       const Vec3 di = -undo * (wp / (wp + wo));
       p.position[i] += di;
       if (wo > 0.0) p.position[ct.other.index()] += undo * (wo / (wp + wo));
-      else if (ct.otherFixed && !in.contactImpulses.empty()) in.contactImpulses[k] += p.mass[i] * di / h;
+      else if (ct.otherFixed && !in.contactImpulses.empty()) {
+        // (a position change that counts towards the velocity is an impulse m dx / h where the particle was
+        // at the start of the substep)
+        in.contactImpulses[k] += p.mass[i] * di / h;
+        if (moments) in.contactMoments[k] += scratch[i].cross(p.mass[i] * di / h);
+      }
     }
     // update velocities
     for (const ParticleId id : in.particles) {
@@ -144,6 +160,14 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
       p.velocity[i] = (p.position[i] - scratch[i] - push_[i]) / h;
       push_[i] = Vec3::Zero();
     }
+    // (the moment of momentum the position corrections carried: m dx x v)
+    if (moments)
+      for (std::size_t k = 0; k < in.contacts.size(); ++k) {
+        const DeformableContact& ct = in.contacts[k];
+        if (!ct.otherFixed || pushed[k].isZero()) continue;
+        const std::size_t i = ct.p.index();
+        in.contactMoments[k] += p.mass[i] * pushed[k].cross(p.velocity[i]);
+      }
     // touching contacts stop the relative motion into them (inelastic, momentum-conserving; what a rigid
     // body's particle takes is reported so that the body can be given it)
     for (std::size_t k = 0; k < in.contacts.size(); ++k) {
@@ -161,7 +185,10 @@ void integrateDeformables(ParticleStore& p, const ConnectorStore& c, const Defor
       const double j = -vn / (wp + wo);
       p.velocity[i] += wp * j * n;
       if (otherMoves) p.velocity[ct.other.index()] -= wo * j * n;
-      else if (ct.otherFixed && !in.contactImpulses.empty()) in.contactImpulses[k] += j * n;
+      else if (ct.otherFixed && !in.contactImpulses.empty()) {
+        in.contactImpulses[k] += j * n;
+        if (moments) in.contactMoments[k] += p.position[i].cross(j * n);
+      }
     }
   }
 }

@@ -52,11 +52,17 @@ struct DeformableStepInput {
   /// If not empty (sized like `contacts`): the impulse [N s] each contact with a fixed other particle gave
   /// its deformable particle by stopping it; the rigid body of the other particle owes the opposite one.
   std::span<Vec3> contactImpulses;
+  /// If not empty (sized like `contacts`): the angular momentum [kg m^2/s] about the origin that each such
+  /// contact gave its deformable particle: the moments x x J of its impulses where the particle was when
+  /// each acted, and the moment of momentum its position corrections carried (a particle moved by dx
+  /// without momentum gains m dx x v). The rigid body owes the opposite, so that the pair keeps its angular
+  /// momentum as it keeps its momentum.
+  std::span<Vec3> contactMoments;
 };
 
 /// Buffers kept between steps (sized once).
 struct DeformableScratch {
-  std::vector<Vec3> previous, push, touchNormal;
+  std::vector<Vec3> previous, push, touchNormal, pushed;
   std::vector<std::uint8_t> touching;
 };
 

@@ -776,18 +776,26 @@ void World::buildContactPoints() {
       const double friction = std::sqrt(ma->friction * mb->friction);
       const double restitution = std::max(ma->restitution, mb->restitution);
       const Side sideA = sideOf(patch.a), sideB = sideOf(patch.b);
+      // a deformable particle is a point mass: a rigid body it touches takes the impulse on the line through
+      // the particle's centre (equal and opposite on one line, so the pair keeps its angular momentum), and
+      // the particle's overlap is left to the substeps' contacts (a position correction here would move it
+      // without momentum, and carry its moment of momentum away)
+      const bool deformableA = sideA.kind == BodyKind::Deformable, deformableB = sideB.kind == BodyKind::Deformable;
       const auto addPoint = [&](const ParticleContact& c, const Vec3& normal, double depth, const Vec3& frictionOffset) {
         ContactPointInput& in = contactPoints_[out];
         pointParticles_[out++] = {c.a, c.b};
         in.a = slotOf(patch.a, sideA, c.a);
         in.b = c.b.valid() ? slotOf(patch.b, sideB, c.b) : ContactPointInput::kFixed;
-        in.rA = arm(sideA, c.point);
-        in.rB = arm(sideB, c.point);
+        const Vec3& at = deformableA ? particles_.position[c.a.index()]
+                         : deformableB && c.b.valid() ? particles_.position[c.b.index()]
+                                                      : c.point;
+        in.rA = arm(sideA, at);
+        in.rB = arm(sideB, at);
         in.normal = normal;
         in.frictionOffset = frictionOffset;
         in.depth = depth;
         const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
-        in.slop = settings_.slop * rsum;
+        in.slop = deformableA || deformableB ? std::numeric_limits<double>::infinity() : settings_.slop * rsum;
         in.friction = friction;
         in.restitution = restitution;
         in.key = (static_cast<std::uint64_t>(c.a.value) << 32) |
@@ -1029,6 +1037,8 @@ void World::integratePositions() {
   in.contacts = deformableContacts_;
   deformableContactImpulses_.resize(deformableContacts_.size());
   in.contactImpulses = deformableContactImpulses_;
+  deformableContactMoments_.resize(deformableContacts_.size());
+  in.contactMoments = deformableContactMoments_;
   deformableForces_.resize(connectors_.size(), 0.0);
   in.forces = deformableForces_;
   integrateDeformables(particles_, connectors_, in, scratch_);
@@ -1038,12 +1048,15 @@ void World::integratePositions() {
   for (std::size_t k = 0; k < deformableContacts_.size(); ++k) {
     const DeformableContact& ct = deformableContacts_[k];
     const Vec3& j = deformableContactImpulses_[k];
-    if (!ct.other.valid() || j.isZero()) continue;
+    const Vec3& moment = deformableContactMoments_[k];
+    if (!ct.other.valid() || (j.isZero() && moment.isZero())) continue;
     const BodyId b = particles_.body[ct.other.index()];
     BodyState& s = bodies_.state[b.index()];
     if (bodies_.info[b.index()].kind != BodyKind::Rigid || s.invMass == 0.0) continue;
+    // (the opposite of what the particle got: its momentum, and its angular momentum about the origin,
+    // which about the body's centre is moment - c x j)
     s.linearVelocity -= s.invMass * j;
-    s.angularVelocity -= s.invInertiaWorld * (particles_.position[ct.other.index()] - s.position).cross(j);
+    s.angularVelocity -= s.invInertiaWorld * (moment - s.position.cross(j));
     touchedRigid_.push_back(b);
   }
   std::sort(touchedRigid_.begin(), touchedRigid_.end());

@@ -207,7 +207,8 @@ class World {
   std::vector<double> deformableForces_;                    // [C] XPBD connector forces [N]
   std::vector<BreakEvent> breakEvents_;
   std::unique_ptr<ThreadPool> pool_;  // null with one thread
-  std::vector<Vec3> deformableContactImpulses_;
+  std::vector<Vec3> deformableContactImpulses_;  // per deformable contact: what its particle got against a rigid body
+  std::vector<Vec3> deformableContactMoments_;   // (and the angular momentum about the origin)
   std::vector<BodyId> touchedRigid_;
   std::vector<ParticleId> seeds_, ringScratch_;
   std::vector<std::uint32_t> ringMark_;

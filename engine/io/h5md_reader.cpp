@@ -269,13 +269,14 @@ Result<TrajectorySummary> H5mdReader::summary() const {
       s.patchOffset = readAll<std::int64_t>(f, "patches/offset", H5T_NATIVE_INT64, rows, limit);
       s.patchCount = readAll<std::int64_t>(f, "patches/count", H5T_NATIVE_INT64, rows, limit);
     }
-    // the per-frame records agree with each other and with the frames of the positions (a record of a
-    // frame cut short may be there or not)
-    const std::size_t written = s.frames + s.tornFrames;
+    // the per-frame records agree with each other and with the frames of the positions (each record of a
+    // frame cut short may be there or not, whichever of them the run had extended when it stopped)
+    const std::size_t written = complete ? s.frames + 1 : s.frames;
+    const std::string expected = complete ? std::to_string(s.frames) + " complete frames (or one more, cut short)"
+                                          : std::to_string(s.frames) + " frames";
     const auto frames = [&](const std::string& name, std::size_t n) {
       if (n < s.frames || n > written)
-        throw ReadFailure{"/" + name + " has " + std::to_string(n) + " entries but /particles/all/position/step has " +
-                          std::to_string(written) + "; expected one per frame"};
+        throw ReadFailure{"/" + name + " has " + std::to_string(n) + " entries; expected one per frame, " + expected};
     };
     frames("particles/all/position/time", s.time.size());
     frames("observables/kinetic_energy/value", s.kinetic.size());
@@ -294,8 +295,7 @@ Result<TrajectorySummary> H5mdReader::summary() const {
     std::vector<hsize_t> d;
     openChecked(f, "particles/all/position/value", positions, limit, d);  // (its shape is all it needs)
     if (d[0] < s.frames || d[0] > written)
-      throw ReadFailure{"/particles/all/position/value has " + std::to_string(d[0]) + " frames but /particles/all/position/step has " +
-                        std::to_string(written) + "; expected one step number per frame"};
+      throw ReadFailure{"/particles/all/position/value has " + std::to_string(d[0]) + " frames; expected " + expected};
     for (auto* v : {&s.time, &s.kinetic, &s.potential, &s.total}) v->resize(s.frames);
     s.step.resize(s.frames);
     if (!s.patchOffset.empty()) {

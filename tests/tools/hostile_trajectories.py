@@ -181,6 +181,18 @@ def main():
     r = subprocess.run([volpar, "inspect", "--json", torn], capture_output=True, text=True, timeout=60)
     if r.returncode != 0 or '"frames": %d' % (frames - 1) not in r.stdout or '"torn_frames": 1' not in r.stdout:
         failures.append("a file with one frame cut short: exit %d\n%s" % (r.returncode, r.stdout + r.stderr))
+    # cut short earlier: the positions already hold the frame, its step number and energies not yet
+    early = os.path.join(work, "torn_early.h5")
+    shutil.copyfile(good, early)
+    with h5py.File(early, "r+") as h:
+        frames = h["particles/all/position/step"].shape[0]
+        for name in ("particles/all/position/step", "particles/all/position/time", "observables/kinetic_energy/value",
+                     "observables/potential_energy/value", "observables/total_energy/value"):
+            h[name].resize(frames - 1, axis=0)
+        h["parameters"].attrs["frames_complete"] = np.int64(frames - 1)
+    r = subprocess.run([volpar, "inspect", "--json", early], capture_output=True, text=True, timeout=60)
+    if r.returncode != 0 or '"frames": %d' % (frames - 1) not in r.stdout:
+        failures.append("a file whose positions hold a frame its step numbers do not: exit %d\n%s" % (r.returncode, r.stdout + r.stderr))
     damaged = damaged_files(volpar, sys.argv[4], failures) if len(sys.argv) > 4 else 0
     for f in failures:
         print("FAIL", f)
