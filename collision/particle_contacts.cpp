@@ -155,7 +155,8 @@ double ContactFinder::sweepReach(const BodyStore& bodies, BodyId a, BodyId b, co
   } else {
     closing += std::max(0.0, -n.dot(sa.linearVelocity));
   }
-  // (a finite, bounded reach: a body flung absurdly fast still searches no more than its own box's way)
+  // (a reach the pair's motion cannot make infinite; the search stays inside the other body's grid however far
+  // it reaches)
   const double sweep = std::max(0.0, closing * sweepTime_ - reach);
   return std::isfinite(sweep) ? sweep : 0.0;
 }
