@@ -443,6 +443,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     PartBatches& pb = batches_[part];
     const std::uint32_t fixed = fixedSlot_[part];
     std::uint64_t* const keys = keys_.data() + posBase_[part];
+    Cached* const next = nextCache_.data() + posBase_[part];
     std::size_t started = 0;
     constexpr std::size_t kAhead = 2;  // batches whose input points are fetched ahead of their use
     const auto fetch = [&](std::size_t j) {
@@ -497,6 +498,10 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
                               : in.depth < 0.0                                              ? in.depth / dt
                                                                                             : 0.0;
         b.targetN[l] = static_cast<float>(target);
+        // (the speed a point arriving at contact within this step arrives with, for its bounce in the next:
+        // finish() keeps it with the point's impulses)
+        next[4 * j + lane].lambdaT.w() =
+            deferred && bounces(in, vn, settings_.restitutionThreshold) && arrives(in, vn, dt) ? static_cast<float>(-vn) : 0.0f;
         b.biasP[l] = static_cast<float>(
             std::min(settings_.baumgarte * std::max(in.depth - in.slop, 0.0) / dt, settings_.maxCorrectionSpeed));
       }
@@ -522,13 +527,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       const float l1 = b.lambdaT1[l], l2 = b.lambdaT2[l], ln = b.lambdaN[l];
       const float tx = l1 * b.t1.dx[l] + l2 * b.t2.dx[l], ty = l1 * b.t1.dy[l] + l2 * b.t2.dy[l],
                   tz = l1 * b.t1.dz[l] + l2 * b.t2.dz[l];
-      // (and the speed a point arriving at contact within this step arrives with, for its bounce)
-      float impact = 0.0f;
-      if (in.restitution > 0.0 && settings_.warmStart && in.depth < 0.0) {
-        const double vn = normalVelocity(in, in.a == kFixed ? nullptr : &bodies[in.a], in.b == kFixed ? nullptr : &bodies[in.b]);
-        if (bounces(in, vn, settings_.restitutionThreshold) && arrives(in, vn, dt)) impact = static_cast<float>(-vn);
-      }
-      next[l] = Cached{ln, V4(tx, ty, tz, impact)};
+      next[l] = Cached{ln, V4(tx, ty, tz, next[l].lambdaT.w())};  // (w: the arrival speed prepare() put there)
       const Vec3 impulse(static_cast<double>(ln * b.n.dx[l] + tx), static_cast<double>(ln * b.n.dy[l] + ty),
                          static_cast<double>(ln * b.n.dz[l] + tz));
       const Vec3 tangential(static_cast<double>(tx), static_cast<double>(ty), static_cast<double>(tz));

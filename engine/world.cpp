@@ -941,37 +941,36 @@ void World::resistRolling() {
     const auto [ma, mb] = contactMaterials(first.a, first.b, first.plane);
     const double mu = std::max(ma->rollingResistance, mb->rollingResistance);
     if (mu <= 0.0) continue;
-    const auto rigid = [&](BodyId b) { return b.valid() && bodies_.info[b.index()].kind == BodyKind::Rigid; };
-    const auto fixed = [&](BodyId b) { return !b.valid() || bodies_.info[b.index()].kind == BodyKind::Static; };
-    if (!(rigid(patch.a) || rigid(patch.b)) || !(rigid(patch.a) || fixed(patch.a)) || !(rigid(patch.b) || fixed(patch.b))) continue;
+    const auto kindOf = [&](BodyId b) { return b.valid() ? bodies_.info[b.index()].kind : BodyKind::Static; };
+    const BodyKind ka = kindOf(patch.a), kb = kindOf(patch.b);
+    if (ka == BodyKind::Deformable || kb == BodyKind::Deformable || (ka != BodyKind::Rigid && kb != BodyKind::Rigid)) continue;
     const Vec3& n = patch.normal;
     double normal = 0.0;
     for (std::uint32_t k = pointFirst_[j]; k < pointFirst_[j + 1]; ++k) normal += n.dot(impulses[k]);
     if (normal <= 0.0) continue;
+    // each rigid side's solver body, inverse inertia and rolling radius (a static side: none, infinite)
     double inverseRadius = 0.0;
-    Vec3 wa = Vec3::Zero(), wb = Vec3::Zero();
-    Mat3 ia = Mat3::Zero(), ib = Mat3::Zero();
-    SolverBody* sa = nullptr;
-    SolverBody* sb = nullptr;
-    for (const BodyId b : {patch.a, patch.b}) {
-      if (!rigid(b)) continue;
-      SolverBody& body = solverBodies_[bodySolverIndex_[b.index()]];
+    std::array<SolverBody*, 2> side{};
+    std::array<Mat3, 2> inverse{Mat3::Zero(), Mat3::Zero()};
+    Vec3 relative = Vec3::Zero();  // (B's angular velocity relative to A's)
+    for (std::size_t s = 0; s < 2; ++s) {
+      const BodyId b = s == 0 ? patch.a : patch.b;
+      if (kindOf(b) != BodyKind::Rigid) continue;
+      side[s] = &solverBodies_[bodySolverIndex_[b.index()]];
+      inverse[s] = side[s]->invInertia;
+      relative += s == 0 ? Vec3(-side[s]->w) : side[s]->w;
       const double radius = std::abs(n.dot(patch.point - bodies_.state[b.index()].position));
       inverseRadius += radius > 0.0 ? 1.0 / radius : std::numeric_limits<double>::infinity();
-      (b == patch.a ? sa : sb) = &body;
     }
-    if (sa) wa = sa->w, ia = sa->invInertia;
-    if (sb) wb = sb->w, ib = sb->invInertia;
-    const Vec3 relative = wb - wa;
     const Vec3 rolling = relative - relative.dot(n) * n;
     const double speed = rolling.norm();
     if (speed == 0.0 || !(inverseRadius < std::numeric_limits<double>::infinity())) continue;
     const Vec3 e = rolling / speed;
-    const double k = e.dot((ia + ib) * e);
+    const double k = e.dot((inverse[0] + inverse[1]) * e);
     if (k <= 0.0) continue;
     const double couple = std::min(speed / k, mu * normal / inverseRadius);
-    if (sa) sa->w += couple * (ia * e);
-    if (sb) sb->w -= couple * (ib * e);
+    if (side[0]) side[0]->w += couple * (inverse[0] * e);
+    if (side[1]) side[1]->w -= couple * (inverse[1] * e);
   }
 }
 
