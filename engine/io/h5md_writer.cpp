@@ -234,15 +234,19 @@ void scalarString(hid_t parent, const std::string& name, const std::string& valu
 class Series {
  public:
   Series() = default;
-  /// With `growable`, the first dimension after the frames can grow too (bodies appear when bodies break);
-  /// entries not written yet read as NaN (floating-point data).
-  Series(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, bool growable = false)
-      : tail_(std::move(tail)) {
+  /// With `growTo` > 0, the first dimension after the frames can grow too, up to `growTo` (bodies appear
+  /// when bodies break); entries not written yet read as NaN (floating-point data). The bound keeps the frames
+  /// the only unlimited dimension, so that HDF5 indexes the chunks in an extensible array, which appending
+  /// never rearranges (two unlimited dimensions take a B-tree, whose node splits rewrite nodes that hold
+  /// frames already counted complete; a run killed in the middle of a split lost them).
+  Series(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, hsize_t growTo = 0)
+      : tail_(std::move(tail)), growTo_(growTo) {
+    const bool growable = growTo > 0;
     std::vector<hsize_t> dims{0}, maxdims{H5S_UNLIMITED}, chunk{1};
     hsize_t rowSize = 1;
     for (std::size_t k = 0; k < tail_.size(); ++k) {
       dims.push_back(tail_[k]);
-      maxdims.push_back(growable && k == 0 ? H5S_UNLIMITED : tail_[k]);
+      maxdims.push_back(growable && k == 0 ? std::max(growTo, tail_[k]) : tail_[k]);
       rowSize *= tail_[k];
     }
     // Small chunks: the file is flushed after every frame, which recompresses the partly filled last
@@ -262,8 +266,8 @@ class Series {
     if (growable && !tail_.empty()) {
       hsize_t row = 1;
       for (std::size_t k = 1; k < tail_.size(); ++k) row *= tail_[k];
-      chunk[1] = 64;
-      chunk[0] = std::max<hsize_t>(1, kSmallRow / (64 * row));
+      chunk[1] = std::min<hsize_t>(64, maxdims[1]);  // (no wider than the dimension can grow)
+      chunk[0] = std::max<hsize_t>(1, kSmallRow / (chunk[1] * row));
     }
     for (hsize_t& c : chunk) c = std::max<hsize_t>(c, 1);
     Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), maxdims.data()), H5Sclose, "space");
@@ -313,6 +317,9 @@ class Series {
   /// Grows the first dimension after the frames to `n` (growable series only); earlier frames read NaN there.
   void growTail(hsize_t n) {
     if (n <= tail_[0]) return;
+    if (n > growTo_)
+      throw H5Failure{"the trajectory has room for " + std::to_string(growTo_) + " bodies and the world has " +
+                      std::to_string(n)};
     tail_[0] = n;
     std::vector<hsize_t> dims{rows_};
     for (const hsize_t d : tail_) dims.push_back(d);
@@ -331,6 +338,7 @@ class Series {
  private:
   Hid ds_;
   std::vector<hsize_t> tail_;
+  hsize_t growTo_ = 0;
   hsize_t rows_ = 0;
 };
 
@@ -341,9 +349,9 @@ class Element {
   /// With `clock` given, step and time are hard links to that element's (H5MD allows sharing them
   /// between elements sampled together), and append() leaves them to the owner.
   Element(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, const std::string& unit,
-          const Element* clock = nullptr, bool growable = false) {
+          const Element* clock = nullptr, hsize_t growTo = 0) {
     group_ = group(parent, name);
-    value_ = Series(group_.get(), "value", type, std::move(tail), growable);
+    value_ = Series(group_.get(), "value", type, std::move(tail), growTo);
     if (!unit.empty()) attrString(value_.id(), "unit", unit);
     if (clock) {
       check(H5Lcreate_hard(clock->group_.get(), "step", group_.get(), "step", H5P_DEFAULT, H5P_DEFAULT), "link step");
@@ -570,10 +578,18 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     mdc.flash_incr_mode = H5C_flash_incr__off;
     mdc.decr_mode = H5C_decr__off;
     check(H5Pset_mdc_config(fapl.get(), &mdc), "metadata cache settings");
+    // The 1.10 file format: a dataset whose frames are its only unlimited dimension has its chunks indexed in
+    // an extensible array, and appending a frame writes new entries without moving the old ones. The original
+    // format's B-tree index splits its nodes as it grows, rewriting the nodes that point at frames already
+    // counted complete, and a run killed during a split left a file that no longer read (docs/hardening.md).
+    // Files in this format are read by HDF5 1.10 and later (h5py, ParaView, h5dump). The file is created in
+    // the original format first: the 1.10 superblock would mark the file open for writing, and HDF5 refuses to
+    // open a file so marked, which is exactly what a killed run leaves behind.
     // The file is made under a temporary name and takes its own only once its structure is on disk: a run
     // killed while creating it leaves no file of that name that HDF5 could not open.
     impl->file = checked(H5Fcreate(creating.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose, "create file");
     const hid_t f = impl->file.get();
+    check(H5Fset_libver_bounds(f, H5F_LIBVER_V110, H5F_LIBVER_V110), "file format version");
     const ParticleStore& p = world.particles();
     const BodyStore& b = world.bodies();
     const hsize_t np = p.size();
@@ -605,12 +621,16 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       Hid bodies = group(f, "particles/bodies");
       writeBox(bodies.get());
       impl->bodyInfo = BodyInfoSeries(bodies.get());
-      impl->bodyPosition = Element(bodies.get(), "position", H5T_IEEE_F64LE, {nb, 3}, "m", nullptr, true);
+      // Breaking apart only ever splits a body into two or more, each with particles of its own, so a body of
+      // n particles leaves at most 2n - 1 bodies in all: nb + 2 np bounds the bodies of any run.
+      const hsize_t maxBodies = std::max<hsize_t>(nb + 2 * np, 1);
+      impl->bodyPosition = Element(bodies.get(), "position", H5T_IEEE_F64LE, {nb, 3}, "m", nullptr, maxBodies);
       impl->bodyOrientation =
-          Element(bodies.get(), "orientation", H5T_IEEE_F64LE, {nb, 4}, "", &impl->bodyPosition, true);
-      impl->bodyVelocity = Element(bodies.get(), "velocity", H5T_IEEE_F64LE, {nb, 3}, "m s-1", &impl->bodyPosition, true);
+          Element(bodies.get(), "orientation", H5T_IEEE_F64LE, {nb, 4}, "", &impl->bodyPosition, maxBodies);
+      impl->bodyVelocity =
+          Element(bodies.get(), "velocity", H5T_IEEE_F64LE, {nb, 3}, "m s-1", &impl->bodyPosition, maxBodies);
       impl->bodyAngularVelocity =
-          Element(bodies.get(), "angular_velocity", H5T_IEEE_F64LE, {nb, 3}, "s-1", &impl->bodyPosition, true);
+          Element(bodies.get(), "angular_velocity", H5T_IEEE_F64LE, {nb, 3}, "s-1", &impl->bodyPosition, maxBodies);
       impl->syncBodies(b);
     }
     // /breakage: every connector that broke (the engine's own group)
