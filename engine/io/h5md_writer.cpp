@@ -87,12 +87,18 @@ Hid checked(hid_t id, herr_t (*close)(hid_t), const std::string& what) {
   return Hid(id, close);
 }
 
+/// The group `name` (a path of groups; those missing on the way are made too), without modification times
+/// so that identical runs give identical files (HDF5 makes intermediate groups with its default properties,
+/// which record times: each group on the way is made here instead).
 Hid group(hid_t parent, const std::string& name) {
-  Hid lcpl = checked(H5Pcreate(H5P_LINK_CREATE), H5Pclose, "link property list");
-  check(H5Pset_create_intermediate_group(lcpl.get(), 1), "intermediate groups");
   Hid gcpl = checked(H5Pcreate(H5P_GROUP_CREATE), H5Pclose, "group property list");
-  check(H5Pset_obj_track_times(gcpl.get(), 0), "track times");  // identical runs give identical files
-  return checked(H5Gcreate2(parent, name.c_str(), lcpl.get(), gcpl.get(), H5P_DEFAULT), H5Gclose, "group " + name);
+  check(H5Pset_obj_track_times(gcpl.get(), 0), "track times");
+  for (std::size_t slash = name.find('/'); slash != std::string::npos; slash = name.find('/', slash + 1)) {
+    const std::string way = name.substr(0, slash);
+    if (H5Lexists(parent, way.c_str(), H5P_DEFAULT) > 0) continue;
+    checked(H5Gcreate2(parent, way.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose, "group " + way);
+  }
+  return checked(H5Gcreate2(parent, name.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose, "group " + name);
 }
 
 /// Dataset creation properties: no modification times, so identical runs give identical files.
