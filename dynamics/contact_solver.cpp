@@ -571,6 +571,8 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       started[2] = count;
     }
     barrier_.wait();
+    if (worker == 0) solveHeavyIslands();
+    barrier_.wait();
     // the velocity iterations; the last one hands each batch's impulses to the bodies as it goes (the
     // halves at once, then the joining points: every body sums its impulses in the same order)
     const auto none = [](std::size_t) {};

@@ -38,6 +38,12 @@ struct SolverSettings {
   double baumgarte = 0.2;               ///< [-] fraction of the penetration (beyond the slop) removed per step
   double maxCorrectionSpeed = 1.0;      ///< [m/s] cap on the pseudo velocity of position correction
   bool warmStart = true;
+  /// An island (bodies joined by contacts, the fixed world not joining them) in which two touching bodies'
+  /// masses differ by this factor or more, with at most heavyIslandRows contact points, has its normal
+  /// impulses solved exactly before the iterations: iterations alone converge at a rate set by the mass
+  /// ratio (a heavy box on a light one needs hundreds). 0: never.
+  double heavyIslandRatio = 10.0;
+  int heavyIslandRows = 64;
 };
 
 /// A body as the solver sees it.
@@ -84,6 +90,8 @@ class ContactSolver {
   /// Sum of the normal impulses applied in the last solve [N s].
   [[nodiscard]] double totalNormalImpulse() const { return totalNormalImpulse_; }
   [[nodiscard]] std::size_t warmStarted() const { return warmStarted_; }
+  /// Islands whose normal impulses the last solve found exactly (see SolverSettings::heavyIslandRatio).
+  [[nodiscard]] std::size_t heavyIslandsSolved() const { return heavyIslandsSolved_; }
   /// The impulse [N s] each point of the last solve applied to its B side (A got the opposite), world.
   [[nodiscard]] std::span<const Vec3> impulses() const { return impulses_; }
 
@@ -122,6 +130,10 @@ class ContactSolver {
     std::array<std::uint32_t, 65> start{};   // (counting sort by colour)
     std::vector<std::uint32_t> sorted;       // rows in batch order, four to a batch (kNoRow: padding)
   };
+  /// The normal impulses of each small island of bodies whose masses differ widely, solved exactly (a
+  /// dense linear complementarity problem over its normal rows, by active sets) after the warm start; the
+  /// iterations then go on from there (contact_solver_islands.cpp).
+  void solveHeavyIslands();
   /// Colours a part's rows and lays out its batches (rows not yet prepared).
   void colour(std::size_t part);
   /// One velocity iteration over a part's batches; after(j) follows batch j.
@@ -174,6 +186,14 @@ class ContactSolver {
   std::vector<Cached> nextCache_;
   std::vector<std::uint32_t> table_;      // lanes of the last step; a power of two long, at most half full
   int tableBits_ = 0;
+  // solveHeavyIslands()'s scratch: per slot its island (union-find); the rows (part, batch, lane) grouped by
+  // island; one island's dense problem
+  std::vector<std::uint32_t> islandOf_;
+  std::vector<std::uint32_t> islandRows_, islandStart_, islandFill_;
+  std::vector<std::uint8_t> islandHeavy_;
+  std::vector<double> islandA_, islandB_, islandLambda_, islandU0_;
+  std::vector<std::uint8_t> islandActive_;
+  std::size_t heavyIslandsSolved_ = 0;
   std::vector<Vec3> impulses_;
   double totalNormalImpulse_ = 0.0;
   std::size_t warmStarted_ = 0;

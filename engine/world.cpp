@@ -899,6 +899,7 @@ void World::solveContacts() {
   if (contactPoints_.empty()) return;
   solver_.solve(solverBodies_, contactPoints_, settings_.dt, pool_.get());
   stats_.warmStarted = solver_.warmStarted();
+  stats_.heavyIslands = solver_.heavyIslandsSolved();
   if (anyRollingResistance_) resistRolling();
   if (!breakableRigid_.empty()) {
     const std::span<const Vec3> impulses = solver_.impulses();

@@ -52,6 +52,7 @@ struct StepStats {
   std::size_t normalsRecomputed = 0;   ///< cached surface normals recomputed this step
   std::size_t contactPoints = 0;       ///< solver contact points (patches reduced to at most 4 points)
   std::size_t warmStarted = 0;         ///< of them, warm started from the previous step
+  std::size_t heavyIslands = 0;        ///< islands whose normal impulses were solved exactly (mass ratios)
   std::size_t connectorsBroken = 0;    ///< rods and springs that broke this step
   std::size_t bodiesCreated = 0;       ///< fragments made by bodies breaking apart this step
 };
