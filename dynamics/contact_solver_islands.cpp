@@ -66,7 +66,8 @@ void ContactSolver::solveHeavyIslands() {
     }
   };
   const auto heavyPair = [&](const Batch& b, std::size_t l) {
-    const double ia = b.invMassA[static_cast<int>(l)], ib = b.invMassB[static_cast<int>(l)];
+    const double ia = static_cast<double>(b.invMassA[static_cast<int>(l)]);
+    const double ib = static_cast<double>(b.invMassB[static_cast<int>(l)]);
     return ia > 0.0 && ib > 0.0 && (ia >= ratio * ib || ib >= ratio * ia);
   };
   bool any = false;
@@ -129,10 +130,13 @@ void ContactSolver::solveHeavyIslands() {
       Side s;
       s.slot = onB ? b.b[l] : b.a[l];
       s.sign = onB ? 1.0 : -1.0;
-      s.invMass = onB ? b.invMassB[k] : b.invMassA[k];
-      s.d = Vec3(x.dx[k], x.dy[k], x.dz[k]);
-      s.cross = onB ? Vec3(x.bx[k], x.by[k], x.bz[k]) : Vec3(x.ax[k], x.ay[k], x.az[k]);
-      s.turn = onB ? Vec3(x.tbx[k], x.tby[k], x.tbz[k]) : Vec3(x.tax[k], x.tay[k], x.taz[k]);
+      const auto lane = [k](const Eigen::Array4f& a, const Eigen::Array4f& b2, const Eigen::Array4f& c) {
+        return Vec3(static_cast<double>(a[k]), static_cast<double>(b2[k]), static_cast<double>(c[k]));
+      };
+      s.invMass = static_cast<double>(onB ? b.invMassB[k] : b.invMassA[k]);
+      s.d = lane(x.dx, x.dy, x.dz);
+      s.cross = onB ? lane(x.bx, x.by, x.bz) : lane(x.ax, x.ay, x.az);
+      s.turn = onB ? lane(x.tbx, x.tby, x.tbz) : lane(x.tax, x.tay, x.taz);
       return s;
     };
     Eigen::Map<Eigen::MatrixXd> A(islandA_.data(), n, n);
@@ -163,8 +167,8 @@ void ContactSolver::solveHeavyIslands() {
         u += x.sign * (x.d.dot(wide(v_[x.slot])) + x.cross.dot(wide(w_[x.slot])));
       }
       islandU0_[static_cast<std::size_t>(i)] = u;
-      islandLambda_[static_cast<std::size_t>(i)] = bi.lambdaN[static_cast<int>(li)];
-      islandB_[static_cast<std::size_t>(i)] = bi.targetN[static_cast<int>(li)];
+      islandLambda_[static_cast<std::size_t>(i)] = static_cast<double>(bi.lambdaN[static_cast<int>(li)]);
+      islandB_[static_cast<std::size_t>(i)] = static_cast<double>(bi.targetN[static_cast<int>(li)]);
     }
     if (!(largest > 0.0)) continue;
     for (int i = 0; i < n; ++i) {
