@@ -43,7 +43,7 @@ struct SolverSettings {
   /// impulses solved exactly before the iterations: iterations alone converge at a rate set by the mass
   /// ratio (a heavy box on a light one needs hundreds). 0: never.
   double heavyIslandRatio = 10.0;
-  int heavyIslandRows = 64;
+  int heavyIslandRows = 128;
 };
 
 /// A body as the solver sees it.

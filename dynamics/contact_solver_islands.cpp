@@ -20,7 +20,7 @@
 // go on from the exact impulses (friction, and what the friction changes), so the result is what the
 // iterations would reach, at once.
 //
-// Only islands of at most heavyIslandRows points with a touching pair whose masses differ by
+// Only islands of at most heavyIslandRows (at most 128) points with a touching pair whose masses differ by
 // heavyIslandRatio or more: elsewhere the iterations converge well and cost less. Run by one thread
 // between barriers, in the parts' order: the result does not depend on the thread count.
 
@@ -34,7 +34,7 @@ namespace volpar {
 
 namespace {
 
-constexpr int kMaxRows = 64;  // the largest island solved (a 64 x 64 dense problem)
+constexpr int kMaxRows = 128;  // the largest island solved (a 128 x 128 dense problem)
 
 Eigen::Vector4f narrow(const Vec3& x) {
   return {static_cast<float>(x.x()), static_cast<float>(x.y()), static_cast<float>(x.z()), 0.0f};
