@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace volpar {
 
@@ -16,7 +17,11 @@ constexpr double kPlanarSurface = 0.1;       // smallest / middle principal vari
 constexpr double kCompatible = 0.5;          // cos 60 degrees: missing vectors of one face
 constexpr double kSameFace = 0.9396926;      // cos 20 degrees: normals of one face
 constexpr double kTight = 0.9961947;         // cos 5 degrees: how far a face's normals may spread
+constexpr int kCrackHops = 4;               // how far along a crack's own particles its plane is fitted
+constexpr double kStaircase = 0.3;          // rms distance from a crack's plane, in spacings, of its steps
 constexpr double kFacesOut = 0.3;            // a face around an edge particle faces its way
+
+bool opened(const Neighbourhood& nb, std::uint32_t i) { return !nb.opened.empty() && nb.opened[i] != 0; }
 
 }  // namespace
 
@@ -50,7 +55,6 @@ const SurfaceEstimator::Raw& SurfaceEstimator::raw(const Neighbourhood& nb, std:
     return r;
   }
   r.meanDistance = dist / count;
-  const bool opened = !nb.opened.empty() && nb.opened[i] != 0;
   const bool offset = r.missing.norm() > kSurfaceOffset * dist;
   // the shape of the neighbourhood: principal variances of the neighbour offsets about the particle
   const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov, Eigen::ComputeEigenvectors);
@@ -67,7 +71,7 @@ const SurfaceEstimator::Raw& SurfaceEstimator::raw(const Neighbourhood& nb, std:
     r.kind = inPlane.norm() > kSurfaceOffset * dist ? kRim : kSheet;
     return r;
   }
-  r.kind = count < 4 || offset || opened ? kVolume : kInterior;
+  r.kind = count < 4 || offset || opened(nb, i) ? kVolume : kInterior;
   return r;
 }
 
@@ -80,7 +84,7 @@ Mat3 SurfaceEstimator::neighbourAxes(const Neighbourhood& nb, std::uint32_t i) {
   return Eigen::SelfAdjointEigenSolver<Mat3>(cov, Eigen::ComputeEigenvectors).eigenvectors();
 }
 
-void SurfaceEstimator::twoRing(const Neighbourhood& nb, std::uint32_t i, std::vector<std::uint32_t>& out) {
+void SurfaceEstimator::ring(const Neighbourhood& nb, std::uint32_t i, int hops, bool crack, std::vector<std::uint32_t>& out) {
   out.clear();
   if (++markStamp_ == 0) {
     std::fill(mark_.begin(), mark_.end(), 0u);
@@ -89,13 +93,13 @@ void SurfaceEstimator::twoRing(const Neighbourhood& nb, std::uint32_t i, std::ve
   mark_[i] = markStamp_;
   out.push_back(i);
   std::size_t begin = 0;
-  for (int hop = 0; hop < 2; ++hop) {
+  for (int hop = 0; hop < hops; ++hop) {
     const std::size_t end = out.size();
     for (std::size_t k = begin; k < end; ++k) {
       const std::uint32_t q = out[k];
       for (std::uint32_t e = nb.start[q]; e < nb.start[q + 1]; ++e) {
         const std::uint32_t j = nb.neighbours[e].value;
-        if (mark_[j] == markStamp_) continue;
+        if (mark_[j] == markStamp_ || (crack && !opened(nb, j))) continue;
         mark_[j] = markStamp_;
         out.push_back(j);
       }
@@ -111,21 +115,31 @@ const SurfaceEstimator::Fit& SurfaceEstimator::fit(const Neighbourhood& nb, std:
   f = Fit{};
   const Raw& own = raw(nb, i);
   if (own.kind != kVolume) return f;
-  // the surface particles of the two-hop neighbourhood on the same side as this one
+  // the surface particles of the two-hop neighbourhood on the same side as this one; on a crack face, the
+  // particles that lost a connector, within four connectors along them (they are the face, wherever it
+  // meets the body's older faces, whose particles it leaves out; a crack across the lattice is a staircase,
+  // whose plane a wider patch averages better)
   Vec3 m = own.missing;
-  twoRing(nb, i, fitRing_);
   points_.clear();
   Vec3 sum = Vec3::Zero();
   const double mn = m.norm();
+  const bool crack = opened(nb, i);
+  ring(nb, i, crack ? kCrackHops : 2, crack, fitRing_);
   for (const std::uint32_t q : fitRing_) {
     const Raw& rq = raw(nb, q);
     if (rq.kind != kVolume) continue;
-    const double qn = rq.missing.norm();
-    if (q != i && mn > 0.0 && qn > 0.0 && rq.missing.dot(m) < kCompatible * mn * qn) continue;
+    if (crack) {
+      if (!opened(nb, q) || (q != i && !(rq.missing.dot(m) > 0.0))) continue;
+    } else {
+      const double qn = rq.missing.norm();
+      if (q != i && mn > 0.0 && qn > 0.0 && rq.missing.dot(m) < kCompatible * mn * qn) continue;
+    }
     points_.push_back(nb.positions[q]);
     sum += rq.missing;
   }
-  if (mn <= 1e-12 * std::max(own.meanDistance, 1e-300)) m = sum;  // a particle without its own direction
+  // a particle without its own direction, or on a crack (where the crack meets an older face, its own
+  // missing vector leans towards that face; the crack's particles together point out of the crack)
+  if (crack || mn <= 1e-12 * std::max(own.meanDistance, 1e-300)) m = sum;
   if (points_.size() < 3) {
     f.normal = m.norm() > 0.0 ? Vec3(m.normalized()) : Vec3::Zero();
     f.planar = false;
@@ -141,6 +155,10 @@ const SurfaceEstimator::Fit& SurfaceEstimator::fit(const Neighbourhood& nb, std:
   if (n.dot(m) < 0.0) n = -n;
   f.normal = n;
   f.planar = eig.eigenvalues()[0] <= kPlanarSurface * eig.eigenvalues()[1];
+  // a crack across the lattice is a staircase whose steps are at most a layer high: within a third of a
+  // spacing of its plane (root mean square) it is that plane, however small the patch of it in reach
+  const double stepHeight = kStaircase * own.meanDistance;
+  if (crack && eig.eigenvalues()[0] <= stepHeight * stepHeight * static_cast<double>(points_.size())) f.planar = true;
   return f;
 }
 
@@ -195,7 +213,10 @@ void SurfaceEstimator::estimate(const Neighbourhood& nb, std::span<const Particl
     }
     e.flags = kParticleSurface;
     const Fit f = fit(nb, i);
-    if (f.planar || f.normal.isZero()) {
+    // a planar crack face: where it meets the body's older faces (their particles kept their connectors),
+    // those faces join it, and the particle lies on an edge or a corner
+    const bool crackFace = opened(nb, i) && f.planar;
+    if (f.normal.isZero() || (f.planar && !crackFace)) {
       e.normal = f.normal;
       e.faces[0] = f.normal;
       e.faceCount = f.normal.isZero() ? 0 : 1;
@@ -210,9 +231,16 @@ void SurfaceEstimator::estimate(const Neighbourhood& nb, std::span<const Particl
     std::array<int, 8> counts{};
     std::array<double, 8> spread{};
     std::size_t clusters = 0;
-    twoRing(nb, i, ring_);
+    if (crackFace) {  // the crack's own face comes first, whatever the others
+      firsts[0] = own;
+      sums[0] = own;
+      counts[0] = std::numeric_limits<int>::max();
+      spread[0] = 1.0;
+      clusters = 1;
+    }
+    ring(nb, i, 2, false, ring_);
     for (const std::uint32_t q : ring_) {
-      if (q == i || raw(nb, q).kind != kVolume) continue;
+      if (q == i || raw(nb, q).kind != kVolume || (crackFace && opened(nb, q))) continue;
       const Fit& fq = fit(nb, q);
       if (!fq.planar || !(fq.normal.dot(away) > kFacesOut)) continue;
       std::size_t c = 0;
@@ -225,6 +253,7 @@ void SurfaceEstimator::estimate(const Neighbourhood& nb, std::span<const Particl
         spread[c] = 1.0;
         ++clusters;
       }
+      if (crackFace && c == 0) continue;  // the crack's face, seen from an older face's particle
       sums[c] += fq.normal;
       spread[c] = std::min(spread[c], firsts[c].dot(fq.normal));
       ++counts[c];

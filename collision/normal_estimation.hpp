@@ -1,5 +1,5 @@
 #pragma once
-// Surface normals from the particle neighbourhood alone (DESIGN section 5): for explicit particle lists,
+// Surface normals from the particle neighbourhood alone: for explicit particle lists,
 // for bodies built with `normals: estimated`, for the faces a crack opens and for bodies that deform.
 //
 // For each particle, from its connector neighbours:
@@ -19,6 +19,10 @@
 // edge or a corner: its faces are the normals of the planar surface particles within two hops that face
 // its way, clustered within 20 degrees; two clusters make an edge, three or more a corner (the three
 // largest are kept), and its normal is the mean of its faces, as the builders give a shape's edges.
+// A crack face is made of the particles that lost a connector: a crack particle's plane is fitted to them
+// alone, within four connectors along them on its side (a staircase across the lattice counts as a plane
+// within 0.3 spacings rms), and where the crack meets older faces their tight clusters join it as the
+// faces of an edge or a corner.
 
 #include <array>
 #include <cstdint>
@@ -74,7 +78,9 @@ class SurfaceEstimator {
   /// direction of their best-fit line.
   [[nodiscard]] static Mat3 neighbourAxes(const Neighbourhood& nb, std::uint32_t i);
   const Fit& fit(const Neighbourhood& nb, std::uint32_t i);
-  void twoRing(const Neighbourhood& nb, std::uint32_t i, std::vector<std::uint32_t>& out);
+  /// i and the particles within `hops` connectors of it (with `crack`, only through particles that lost a
+  /// connector).
+  void ring(const Neighbourhood& nb, std::uint32_t i, int hops, bool crack, std::vector<std::uint32_t>& out);
   void grow(std::size_t n);
 
   std::vector<Raw> raw_;
