@@ -11,6 +11,7 @@ namespace volpar {
 namespace {
 
 constexpr double kFacing = 0.05;      // a neighbour's normal faces the other side: n . d above this
+constexpr double kCapLean = 0.2;      // a normal leaning along a cylinder's axis by more than this is on its cap
 constexpr int kFitRings = 3;          // rings of neighbours a curved core's fit reaches
 constexpr double kFan = 0.94;        // cos 20 degrees: faces closer than this beside each other are a curved surface's
 constexpr double kFlat = 0.99985;     // cos 1 degree: the normals of a flat side agree within this
@@ -536,12 +537,14 @@ bool PlaneSolver::coreVertices(std::vector<std::pair<Vec3, double>>& planes, con
 }
 
 bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3& towards, std::vector<Vec3>& out) const {
-  // least squares: the point c nearest to the lines x_i + t n_i, sum (I - n_i n_i^T) c = sum (I - n_i n_i^T) x_i
   out.clear();
   const double reach = 6.0 * side.meanRadius;
-  Mat3 m = Mat3::Zero(), normals = Mat3::Zero();
-  Vec3 rhs = Vec3::Zero(), meanNormal = Vec3::Zero(), meanPosition = Vec3::Zero();
-  int count = 0;
+  // the particles of the curved surface near `at`, and their normals
+  struct Ray {
+    Vec3 x, n;
+  };
+  std::array<Ray, 256> rays;
+  std::size_t count = 0;
   for (const std::uint32_t i : side.hullLocal) {
     const Local& q = side.local[i];
     if (!(q.flags & kParticleSurface) || (q.flags & kParticleSharp) || q.n.isZero()) continue;
@@ -551,40 +554,88 @@ bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3&
     if ((q.x - at).squaredNorm() > reach * reach) continue;
     const Vec3 n = facing(q, towards);
     if (!(n.dot(towards) > kFacing)) continue;
-    const Mat3 p = Mat3::Identity() - n * n.transpose();
-    m += p;
-    rhs += p * q.x;
-    normals += n * n.transpose();
-    meanNormal += n;
-    meanPosition += q.x;
-    ++count;
+    if (count == rays.size()) break;
+    rays[count++] = {q.x, n};
   }
-  if (count < 4) return false;
-  meanNormal.normalize();
-  meanPosition /= count;
+  // least squares: the point c nearest to the lines x_i + t n_i, sum (I - n_i n_i^T) c = sum (I - n_i n_i^T) x_i,
+  // over the rays `use` accepts
+  const auto centre = [&](const auto& use, Vec3& c, Vec3& meanNormal, Vec3& meanPosition, Mat3& normals) {
+    Mat3 m = Mat3::Zero();
+    Vec3 rhs = Vec3::Zero();
+    normals = Mat3::Zero();
+    meanNormal = meanPosition = Vec3::Zero();
+    int used = 0;
+    for (std::size_t k = 0; k < count; ++k) {
+      if (!use(rays[k])) continue;
+      const Vec3& n = rays[k].n;
+      const Mat3 p = Mat3::Identity() - n * n.transpose();
+      m += p;
+      rhs += p * rays[k].x;
+      normals += n * n.transpose();
+      meanNormal += n;
+      meanPosition += rays[k].x;
+      ++used;
+    }
+    if (used < 4) return false;
+    meanNormal.normalize();
+    meanPosition /= used;
+    Eigen::SelfAdjointEigenSolver<Mat3> eig;
+    eig.computeDirect(m);
+    const Vec3 mu = eig.eigenvalues();
+    if (!(mu[0] > 1e-12 * mu[2])) return false;
+    c = Vec3::Zero();
+    for (int k = 0; k < 3; ++k) c += eig.eigenvectors().col(k).dot(rhs) / mu[k] * eig.eigenvectors().col(k);
+    return c.allFinite();
+  };
+  Vec3 c, meanNormal, meanPosition;
+  Mat3 normals;
+  if (!centre([](const Ray&) { return true; }, c, meanNormal, meanPosition, normals)) return false;
   // the normals spread over a cone (a surface curved both ways) or a fan in one plane (curved one way:
   // a cylinder, whose axis is the plane's normal)
   Eigen::SelfAdjointEigenSolver<Mat3> spread;
   spread.computeDirect(normals);
   if (!(spread.eigenvalues()[1] > 1e-6 * spread.eigenvalues()[2])) return false;  // all alike: flat
   const bool cylinder = spread.eigenvalues()[0] < 0.1 * spread.eigenvalues()[1];
-  Eigen::SelfAdjointEigenSolver<Mat3> eig;
-  eig.computeDirect(m);
-  const Vec3 mu = eig.eigenvalues();
-  if (!(mu[0] > 1e-12 * mu[2])) return false;
-  Vec3 c = Vec3::Zero();
-  for (int k = 0; k < 3; ++k) c += eig.eigenvectors().col(k).dot(rhs) / mu[k] * eig.eigenvectors().col(k);
-  // a convex surface has its centre behind it; a concave one (a cloth wrapped round what it touches, the
-  // inside of a bowl) has it in front, and is no sphere about it
-  if (!((c - meanPosition).dot(meanNormal) < 0.0)) return false;
-  if (cylinder) {
-    const Vec3 axis = spread.eigenvectors().col(0);
-    const double half = 20.0 * side.meanRadius;
-    out.push_back(c - half * axis);
-    out.push_back(c + half * axis);
-  } else {
+  if (!cylinder) {
+    // a convex surface has its centre behind it; a concave one (a cloth wrapped round what it touches, the
+    // inside of a bowl) has it in front, and is no sphere about it
+    if (!((c - meanPosition).dot(meanNormal) < 0.0)) return false;
     out.push_back(c);
+    return true;
   }
+  // a cylinder whose side may end in a rounded cap (a capsule): the normals that lean along the axis belong
+  // to the cap and pull the side's fit off its axis; the side is fitted without them, and the cap, where
+  // there is one, ends the axis at its own centre
+  Vec3 axis = spread.eigenvectors().col(0);
+  const auto onSide = [&](const Ray& r) { return std::abs(r.n.dot(axis)) <= kCapLean; };
+  const auto onCap = [&](const Ray& r) { return std::abs(r.n.dot(axis)) > kCapLean; };
+  Vec3 sideCentre, sideNormal, sidePosition;
+  Mat3 sideNormals;
+  if (centre(onSide, sideCentre, sideNormal, sidePosition, sideNormals)) {
+    Eigen::SelfAdjointEigenSolver<Mat3> sideSpread;
+    sideSpread.computeDirect(sideNormals);
+    if (sideSpread.eigenvalues()[1] > 1e-6 * sideSpread.eigenvalues()[2]) {
+      axis = sideSpread.eigenvectors().col(0);
+      // the centre: the point of the side's axis line nearest the lines, whatever its place along the axis
+      c = sideCentre;
+      meanNormal = sideNormal;
+      meanPosition = sidePosition;
+    }
+  }
+  if (!((c - meanPosition).dot(meanNormal) < 0.0)) return false;
+  const double half = 20.0 * side.meanRadius;
+  Vec3 capCentre, capNormal, capPosition;
+  Mat3 capNormals;
+  if (centre(onCap, capCentre, capNormal, capPosition, capNormals) && (capCentre - capPosition).dot(capNormal) < 0.0) {
+    // the axis from the cap's centre (projected onto it) away from the cap
+    const double along = (capCentre - c).dot(axis);
+    const Vec3 end = c + along * axis;
+    out.push_back(end);
+    out.push_back(end - (along >= 0.0 ? half : -half) * axis);
+    return end.allFinite();
+  }
+  out.push_back(c - half * axis);
+  out.push_back(c + half * axis);
   return c.allFinite();
 }
 

@@ -60,9 +60,9 @@ struct Shortfall {
 const Shortfall kShortfalls[] = {
     {"box_box", "hcp", {0.5, 2.0, 2.0, 12.0, 0.025}},
     {"sphere_sphere", "estimated", {0.8, 2.0, 2.0, 8.0, 0.0}},
-    {"capsule_box", "shape", {0.5, 4.0, 2.0, 8.0, 0.01}},
-    {"capsule_box", "estimated", {0.5, 6.5, 3.5, 18.0, 0.01}},
-    {"capsule_box", "hcp", {0.5, 4.0, 2.0, 8.0, 0.02}},
+    {"capsule_box", "shape", {0.5, 2.5, 2.0, 8.0, 0.01}},
+    {"capsule_box", "estimated", {0.5, 5.5, 3.5, 18.0, 0.01}},
+    {"capsule_box", "hcp", {0.5, 2.5, 2.0, 8.0, 0.02}},
     {"cylinder_box", "shape", {0.5, 2.0, 2.0, 8.0, 0.005}},
     {"cylinder_box", "estimated", {0.5, 16.0, 10.0, 38.0, 0.04}},
     {"cylinder_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.01}},
