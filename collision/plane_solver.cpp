@@ -554,7 +554,7 @@ bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3&
     if ((q.x - at).squaredNorm() > reach * reach) continue;
     const Vec3 n = facing(q, towards);
     if (!(n.dot(towards) > kFacing)) continue;
-    if (count == rays.size()) break;
+    if (count == rays.size()) break;  // (far more than a surface holds within six radii of one point)
     rays[count++] = {q.x, n};
   }
   // least squares: the point c nearest to the lines x_i + t n_i, sum (I - n_i n_i^T) c = sum (I - n_i n_i^T) x_i,

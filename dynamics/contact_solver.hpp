@@ -21,6 +21,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -79,6 +80,11 @@ struct ContactPointInput {
 
 class ContactSolver {
  public:
+  ContactSolver();
+  ~ContactSolver();
+  ContactSolver(ContactSolver&&) noexcept;
+  ContactSolver& operator=(ContactSolver&&) noexcept;
+
   void setSettings(const SolverSettings& s) { settings_ = s; }
   [[nodiscard]] const SolverSettings& settings() const { return settings_; }
 
@@ -193,6 +199,10 @@ class ContactSolver {
   std::vector<std::uint8_t> islandHeavy_;
   std::vector<double> islandA_, islandB_, islandLambda_, islandU0_;
   std::vector<std::uint8_t> islandActive_;
+  /// The active set's system and its factors (up to 128 x 128: kept off the stack, made with the first
+  /// island solved and reused).
+  struct IslandSystem;
+  std::unique_ptr<IslandSystem> islandSystem_;
   std::size_t heavyIslandsSolved_ = 0;
   std::vector<Vec3> impulses_;
   double totalNormalImpulse_ = 0.0;

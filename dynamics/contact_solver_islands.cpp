@@ -49,7 +49,21 @@ std::uint32_t findRoot(std::vector<std::uint32_t>& parent, std::uint32_t i) {
   return i;
 }
 
+using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxRows, kMaxRows>;
+using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxRows, 1>;
+
 }  // namespace
+
+struct ContactSolver::IslandSystem {
+  Matrix m;
+  Vector rhs, x, lambda;
+  Eigen::LDLT<Matrix> ldlt;
+};
+
+ContactSolver::ContactSolver() = default;
+ContactSolver::~ContactSolver() = default;
+ContactSolver::ContactSolver(ContactSolver&&) noexcept = default;
+ContactSolver& ContactSolver::operator=(ContactSolver&&) noexcept = default;
 
 void ContactSolver::solveHeavyIslands() {
   heavyIslandsSolved_ = 0;
@@ -101,8 +115,8 @@ void ContactSolver::solveHeavyIslands() {
     islandRows_[islandFill_[r]++] = static_cast<std::uint32_t>(part << 30 | l << 28 | j);
   });
 
-  using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxRows, kMaxRows>;
-  using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxRows, 1>;
+  if (!islandSystem_) islandSystem_ = std::make_unique<IslandSystem>();
+  IslandSystem& sys = *islandSystem_;
   islandA_.resize(static_cast<std::size_t>(kMaxRows * kMaxRows));
   islandB_.resize(kMaxRows);
   islandLambda_.resize(kMaxRows);
@@ -180,7 +194,8 @@ void ContactSolver::solveHeavyIslands() {
     for (int i = 0; i < n; ++i)
       scaleU = std::max({scaleU, std::abs(islandU0_[static_cast<std::size_t>(i)]), std::abs(islandB_[static_cast<std::size_t>(i)])});
     const double tolU = 1e-9 * scaleU;
-    Vector lambda = Vector::Zero(n);
+    Vector& lambda = sys.lambda;
+    lambda.setZero(n);
     bool settled = false;
     // The least-index rule ends for a positive definite A, but the A of coplanar points is singular and,
     // built from single-precision rows, known to about 1e-7: each point's diagonal is raised by a fraction
@@ -196,18 +211,18 @@ void ContactSolver::solveHeavyIslands() {
           if (islandActive_[static_cast<std::size_t>(i)]) act[static_cast<std::size_t>(na++)] = i;
         lambda.setZero();
         if (na > 0) {
-          Matrix M(na, na);
-          Vector rhs(na);
+          sys.m.resize(na, na);
+          sys.rhs.resize(na);
           for (int p = 0; p < na; ++p) {
             const int i = act[static_cast<std::size_t>(p)];
-            for (int q = 0; q < na; ++q) M(p, q) = A(i, act[static_cast<std::size_t>(q)]);
-            M(p, p) *= 1.0 + regular;
-            rhs(p) = islandB_[static_cast<std::size_t>(i)] - islandU0_[static_cast<std::size_t>(i)];
+            for (int q = 0; q < na; ++q) sys.m(p, q) = A(i, act[static_cast<std::size_t>(q)]);
+            sys.m(p, p) *= 1.0 + regular;
+            sys.rhs(p) = islandB_[static_cast<std::size_t>(i)] - islandU0_[static_cast<std::size_t>(i)];
           }
-          const Eigen::LDLT<Matrix> ldlt(M);
-          const Vector x = ldlt.solve(rhs);
-          if (!x.allFinite()) break;
-          for (int p = 0; p < na; ++p) lambda(act[static_cast<std::size_t>(p)]) = x(p);
+          sys.ldlt.compute(sys.m);
+          sys.x = sys.ldlt.solve(sys.rhs);
+          if (!sys.x.allFinite()) break;
+          for (int p = 0; p < na; ++p) lambda(act[static_cast<std::size_t>(p)]) = sys.x(p);
         }
         // Murty's least-index rule: the first point whose impulse is negative (active) or whose velocity
         // is below its target (inactive) changes side

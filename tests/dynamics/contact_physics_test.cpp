@@ -315,12 +315,11 @@ TEST(ContactPhysics, TenCrateTowerStandsForTenSeconds) {
   EXPECT_LT(w.energy().kinetic, 1e-3);
 }
 
-/// The largest distance any body of a stack moves from where it starts over 5 s: the bottom body (light)
-/// on the ground, then `middle` of density `ratio` times the light one's, then, with `lightOnTop`, another
-/// light box. The bodies start just touching.
-double stackDrift(double ratio, const std::string& middle, double middleHalfHeight, bool lightOnTop) {
-  char text[2048];
-  std::snprintf(text, sizeof text, R"(
+/// A scene of bodies made of a light material and a heavy one `ratio` times denser (neither bouncing) over a
+/// ground plane; `bodies` are the entries of its body list.
+std::string massRatioScene(double ratio, const std::string& bodies) {
+  char head[512];
+  std::snprintf(head, sizeof head, R"(
 dt: 0.004166666666666667
 steps: 1
 materials:
@@ -329,7 +328,38 @@ materials:
 planes:
   - {normal: [0, 0, 1], offset: 0, material: light}
 bodies:
-  - shape: {box: {size: [0.4, 0.4, 0.2]}}
+)", 100.0 * ratio);
+  return head + bodies;
+}
+
+struct Drift {
+  double largest = 0.0;          ///< [m] the largest distance any body moved from its start
+  std::size_t heavyIslands = 0;  ///< islands solved exactly, summed over the steps
+};
+
+/// Steps `scene` for 5 s.
+Drift driftOverFiveSeconds(const std::string& scene) {
+  World w = test::worldFromString(scene);
+  std::vector<Vec3> start;
+  for (const BodyState& s : w.bodies().state) start.push_back(s.position);
+  Drift d;
+  for (int i = 0; i < 1200; ++i) {
+    if (w.step() != StepStatus::Ok) {
+      ADD_FAILURE() << "step " << i << " failed";
+      break;
+    }
+    d.heavyIslands += w.stats().heavyIslands;
+    for (std::size_t b = 0; b < start.size(); ++b) d.largest = std::max(d.largest, (w.bodies().state[b].position - start[b]).norm());
+  }
+  return d;
+}
+
+/// The largest distance any body of a stack moves from where it starts over 5 s: the bottom body (light)
+/// on the ground, then `middle` of density `ratio` times the light one's, then, with `lightOnTop`, another
+/// light box. The bodies start just touching.
+double stackDrift(double ratio, const std::string& middle, double middleHalfHeight, bool lightOnTop) {
+  char text[1024];
+  std::snprintf(text, sizeof text, R"(  - shape: {box: {size: [0.4, 0.4, 0.2]}}
     fill: {radius: 0.05}
     material: light
     position: [0, 0, 0.1]
@@ -337,25 +367,17 @@ bodies:
     fill: {radius: 0.05}
     material: heavy
     position: [0, 0, %g]
-)", 100.0 * ratio, middle.c_str(), 0.2 + middleHalfHeight);
-  std::string scene = text;
+)", middle.c_str(), 0.2 + middleHalfHeight);
+  std::string bodies = text;
   if (lightOnTop) {
     std::snprintf(text, sizeof text, R"(  - shape: {box: {size: [0.4, 0.4, 0.2]}}
     fill: {radius: 0.05}
     material: light
     position: [0, 0, %g]
 )", 0.3 + 2.0 * middleHalfHeight);
-    scene += text;
+    bodies += text;
   }
-  World w = test::worldFromString(scene);
-  std::vector<Vec3> start;
-  for (const BodyState& s : w.bodies().state) start.push_back(s.position);
-  double drift = 0.0;
-  for (int i = 0; i < 1200; ++i) {
-    EXPECT_EQ(w.step(), StepStatus::Ok);
-    for (std::size_t b = 0; b < start.size(); ++b) drift = std::max(drift, (w.bodies().state[b].position - start[b]).norm());
-  }
-  return drift;
+  return driftOverFiveSeconds(massRatioScene(ratio, bodies)).largest;
 }
 
 // Stacks whose masses differ by 100 and 1000 times, at the default settings: iterations alone left a heavy
@@ -374,18 +396,7 @@ TEST(ContactPhysics, StacksOfMassRatios100And1000HoldStill) {
 // A plate 100 and 1000 times denser than the 16 crates it rests on (4 x 4, about 110 solver points in one
 // island): every body within 1 mm of its start over 5 s
 TEST(ContactPhysics, HeavyPlateOnSixteenLightCratesHoldsStill) {
-  for (const double ratio : {100.0, 1000.0}) {
-    char text[1024];
-    std::snprintf(text, sizeof text, R"(
-dt: 0.004166666666666667
-steps: 1
-materials:
-  light: {density: 100, restitution: 0.0, friction: 0.5}
-  heavy: {density: %g, restitution: 0.0, friction: 0.5}
-planes:
-  - {normal: [0, 0, 1], offset: 0, material: light}
-bodies:
-  - name: crate
+  const std::string bodies = R"(  - name: crate
     shape: {box: {size: [0.2, 0.2, 0.2]}}
     fill: {radius: 0.05}
     material: light
@@ -396,19 +407,11 @@ bodies:
     fill: {radius: 0.05}
     material: heavy
     position: [0.45, 0.45, 0.25]
-)", 100.0 * ratio);
-    World w = test::worldFromString(text);
-    std::vector<Vec3> start;
-    for (const BodyState& b : w.bodies().state) start.push_back(b.position);
-    double drift = 0.0;
-    std::size_t solved = 0;
-    for (int i = 0; i < 1200; ++i) {
-      ASSERT_EQ(w.step(), StepStatus::Ok);
-      solved += w.stats().heavyIslands;
-      for (std::size_t b = 0; b < start.size(); ++b) drift = std::max(drift, (w.bodies().state[b].position - start[b]).norm());
-    }
-    EXPECT_LT(drift, 1e-3) << "ratio " << ratio;
-    EXPECT_GT(solved, 0u) << "ratio " << ratio;
+)";
+  for (const double ratio : {100.0, 1000.0}) {
+    const Drift d = driftOverFiveSeconds(massRatioScene(ratio, bodies));
+    EXPECT_LT(d.largest, 1e-3) << "ratio " << ratio;
+    EXPECT_GT(d.heavyIslands, 0u) << "ratio " << ratio;
   }
 }
 
