@@ -41,7 +41,8 @@ std::size_t NormalUpdater::recompute(std::span<const ParticleId> ids, ParticleSt
     kinds_.clear();
     if (world)
       for (const ParticleId id : targets) kinds_.push_back(p.flags[id.index()]);
-    estimator_.estimate({positions, adjacency.adjacencyStart(), adjacency.adjacencyList(), opened}, targets, out_, kinds_);
+    estimator_.estimate({positions, adjacency.adjacencyStart(), adjacency.adjacencyList(), opened}, targets, out_, kinds_,
+                        world ? kDeformingSurfaceReach : kSurfaceReach);
     for (std::size_t t = 0; t < targets.size(); ++t) {
       const std::size_t i = targets[t].index();
       const Quat toCache = world ? bodies.state[p.body[i].index()].orientation.conjugate() : Quat::Identity();

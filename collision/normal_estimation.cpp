@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 
 namespace volpar {
@@ -23,7 +24,110 @@ constexpr double kFacesOut = 0.3;            // a face around an edge particle f
 
 bool opened(const Neighbourhood& nb, std::uint32_t i) { return !nb.opened.empty() && nb.opened[i] != 0; }
 
+constexpr double kCurved = 0.5;         // a quadric that halves a plane's squared residual: a curved surface
+constexpr std::size_t kFacesPerParticle = 4;
+constexpr double kFaceSlab = 0.6;       // a face's particles lie within this many spacings of its plane
+constexpr double kFaceRms = 0.35;       // ... and within this many of it (root mean square)
+constexpr double kFaceBend = 0.6;       // the most, in spacings, a quadric over a face may bend away from it
+constexpr double kFacetTurn = 0.5;      // cos 60 degrees: past a face's edge the surface turns by more
+constexpr double kFacetWidth = 2.0;     // a strip narrower than this (spacings, standard deviation) that the
+                                        // surface beyond turns from by less is a facet of a curved surface
+constexpr double kOutermost = 0.5;      // a face's plane is fitted again to the outer half of its steps
+
+/// w = c0 + c1 u + c2 v + c3 u^2 + c4 uv + c5 v^2 about `origin` in the frame (t1, t2, n), least squares.
+struct QuadricFit {
+  bool ok = false;
+  Eigen::Matrix<double, 6, 1> c = Eigen::Matrix<double, 6, 1>::Zero();
+  double residual = 0.0;  // sum of squared residuals
+};
+template <class Points>
+QuadricFit fitQuadric(const Points& points, const Vec3& origin, const Vec3& n, const Vec3& t1, const Vec3& t2) {
+  Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> atw = Eigen::Matrix<double, 6, 1>::Zero();
+  double ww = 0.0;
+  for (const Vec3& p : points) {
+    const Vec3 d = p - origin;
+    const double u = d.dot(t1), v = d.dot(t2), w = d.dot(n);
+    Eigen::Matrix<double, 6, 1> row;
+    row << 1.0, u, v, u * u, u * v, v * v;
+    ata += row * row.transpose();
+    atw += row * w;
+    ww += w * w;
+  }
+  QuadricFit q;
+  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(ata);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-10)) return q;
+  q.c = ldlt.solve(atw);
+  q.ok = q.c.allFinite();
+  q.residual = std::max(ww - q.c.dot(atw), 0.0);
+  return q;
+}
+
+/// The positions of some particles, as a range of points.
+struct Gathered {
+  std::span<const Vec3> positions;
+  std::span<const std::uint32_t> ids;
+  struct It {
+    const Gathered* g;
+    std::size_t k;
+    const Vec3& operator*() const { return g->positions[g->ids[k]]; }
+    It& operator++() {
+      ++k;
+      return *this;
+    }
+    bool operator!=(const It& o) const { return k != o.k; }
+  };
+  [[nodiscard]] It begin() const { return {this, 0}; }
+  [[nodiscard]] It end() const { return {this, ids.size()}; }
+};
+
+/// The surface through `points` at x, oriented along `out`: their best-fit plane where they lie within a
+/// lattice step of it (rms `step`), else a quadric height field over that plane, whose slope at x is the
+/// normal. False where the points are too few to tell.
+bool surfaceThrough(std::span<const Vec3> points, const Vec3& x, const Vec3& out, double step, Vec3& normal,
+                    bool& planar) {
+  if (points.size() < 6) return false;
+  Vec3 centre = Vec3::Zero();
+  for (const Vec3& p : points) centre += p;
+  centre /= static_cast<double>(points.size());
+  Mat3 cov = Mat3::Zero();
+  for (const Vec3& p : points) cov += (p - centre) * (p - centre).transpose();
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov, Eigen::ComputeEigenvectors);
+  const Vec3 l = eig.eigenvalues();
+  if (!(l[0] <= 0.5 * l[1])) return false;  // not spread over a surface
+  Vec3 n0 = eig.eigenvectors().col(0);
+  if (n0.dot(out) < 0.0) n0 = -n0;
+  const double n = static_cast<double>(points.size());
+  // a quadric height field over the plane about x
+  const Vec3 t1 = n0.unitOrthogonal(), t2 = n0.cross(t1);
+  const QuadricFit q = fitQuadric(points, x, n0, t1, t2);
+  const bool quadric = q.ok;
+  const Eigen::Matrix<double, 6, 1>& c = q.c;
+  // the plane's and the quadric's squared residuals: a staircase is a plane the quadric hardly improves on,
+  // a curved surface one whose bend it takes up
+  const double planeSs = std::max(l[0], 0.0), quadricSs = q.residual;
+  const bool bends = quadric && planeSs > 0.01 * step * step * n && quadricSs < kCurved * planeSs;
+  if (planeSs <= step * step * n && !bends) {
+    normal = n0;
+    planar = true;
+    return true;
+  }
+  if (!quadric) return false;
+  const Vec3 g = n0 - c[1] * t1 - c[2] * t2;
+  if (!g.allFinite() || !(g.norm() > 0.0)) return false;
+  normal = g.normalized();
+  planar = false;
+  return true;
+}
+
 }  // namespace
+
+void SurfaceEstimator::nextMark() {
+  if (++markStamp_ != 0) return;
+  std::fill(mark_.begin(), mark_.end(), 0u);
+  std::fill(beyondMark_.begin(), beyondMark_.end(), 0u);
+  markStamp_ = 1;
+}
 
 void SurfaceEstimator::grow(std::size_t n) {
   if (raw_.size() >= n) return;
@@ -46,7 +150,9 @@ const SurfaceEstimator::Raw& SurfaceEstimator::raw(const Neighbourhood& nb, std:
   for (std::uint32_t k = nb.start[i]; k < nb.start[i + 1]; ++k) {
     const Vec3 d = nb.positions[nb.neighbours[k].index()] - x;
     r.missing -= d;
-    dist += d.norm();
+    const double dn = d.norm();
+    r.spacing = count == 0 ? dn : std::min(r.spacing, dn);
+    dist += dn;
     cov += d * d.transpose();
     ++count;
   }
@@ -84,12 +190,10 @@ Mat3 SurfaceEstimator::neighbourAxes(const Neighbourhood& nb, std::uint32_t i) {
   return Eigen::SelfAdjointEigenSolver<Mat3>(cov, Eigen::ComputeEigenvectors).eigenvectors();
 }
 
-void SurfaceEstimator::ring(const Neighbourhood& nb, std::uint32_t i, int hops, bool crack, std::vector<std::uint32_t>& out) {
+void SurfaceEstimator::ring(const Neighbourhood& nb, std::uint32_t i, int hops, bool crack, std::vector<std::uint32_t>& out,
+                            bool surface) {
   out.clear();
-  if (++markStamp_ == 0) {
-    std::fill(mark_.begin(), mark_.end(), 0u);
-    markStamp_ = 1;
-  }
+  nextMark();
   mark_[i] = markStamp_;
   out.push_back(i);
   std::size_t begin = 0;
@@ -100,6 +204,7 @@ void SurfaceEstimator::ring(const Neighbourhood& nb, std::uint32_t i, int hops, 
       for (std::uint32_t e = nb.start[q]; e < nb.start[q + 1]; ++e) {
         const std::uint32_t j = nb.neighbours[e].value;
         if (mark_[j] == markStamp_ || (crack && !opened(nb, j))) continue;
+        if (surface && raw(nb, j).kind != kVolume) continue;
         mark_[j] = markStamp_;
         out.push_back(j);
       }
@@ -124,6 +229,28 @@ const SurfaceEstimator::Fit& SurfaceEstimator::fit(const Neighbourhood& nb, std:
   Vec3 sum = Vec3::Zero();
   const double mn = m.norm();
   const bool crack = opened(nb, i);
+  if (!crack) {
+    // the surface particles along the surface within four hops that face its way: a plane where they lie
+    // within a lattice step of one (a staircase across the lattice), a curved surface otherwise
+    ring(nb, i, reach_, false, wideRing_, true);
+    for (const std::uint32_t q : wideRing_) {
+      const Raw& rq = raw(nb, q);
+      const double qn = rq.missing.norm();
+      if (q != i && mn > 0.0 && qn > 0.0 && rq.missing.dot(m) < kCompatible * mn * qn) continue;
+      points_.push_back(nb.positions[q]);
+      sum += rq.missing;
+    }
+    const Vec3 out = mn > 1e-12 * std::max(own.meanDistance, 1e-300) ? m : sum;
+    Vec3 n;
+    bool planar = false;
+    if (surfaceThrough(points_, nb.positions[i], out, kStaircase * own.spacing, n, planar)) {
+      f.normal = n;
+      f.planar = planar;
+      return f;
+    }
+    points_.clear();
+    sum = Vec3::Zero();
+  }
   ring(nb, i, crack ? kCrackHops : 2, crack, fitRing_);
   for (const std::uint32_t q : fitRing_) {
     const Raw& rq = raw(nb, q);
@@ -163,8 +290,9 @@ const SurfaceEstimator::Fit& SurfaceEstimator::fit(const Neighbourhood& nb, std:
 }
 
 void SurfaceEstimator::estimate(const Neighbourhood& nb, std::span<const ParticleId> targets,
-                                std::vector<SurfaceEstimate>& out, std::span<const std::uint8_t> kinds) {
+                                std::vector<SurfaceEstimate>& out, std::span<const std::uint8_t> kinds, int reach) {
   grow(nb.positions.size());
+  reach_ = reach;
   if (++stamp_ == 0) {  // wrapped: forget every memo
     std::fill(rawStamp_.begin(), rawStamp_.end(), 0u);
     std::fill(fitStamp_.begin(), fitStamp_.end(), 0u);
@@ -283,6 +411,162 @@ void SurfaceEstimator::estimate(const Neighbourhood& nb, std::span<const Particl
   }
 }
 
+bool SurfaceEstimator::growFace(const Neighbourhood& nb, std::uint32_t seed, Vec3& normal) {
+  const double h = raw(nb, seed).spacing;
+  const double tol = kFaceSlab * h;
+  double offset = normal.dot(nb.positions[seed]);
+  const auto candidate = [&](std::uint32_t q) { return raw(nb, q).kind == kVolume && !opened(nb, q); };
+  for (int pass = 0; pass < 4; ++pass) {
+    // the surface particles connected to the seed through others that lie within `tol` of the plane and
+    // face its way
+    members_.clear();
+    nextMark();
+    mark_[seed] = markStamp_;
+    members_.push_back(seed);
+    for (std::size_t k = 0; k < members_.size(); ++k)
+      for (std::uint32_t e = nb.start[members_[k]]; e < nb.start[members_[k] + 1]; ++e) {
+        const std::uint32_t j = nb.neighbours[e].value;
+        if (mark_[j] == markStamp_) continue;
+        mark_[j] = markStamp_;
+        if (!candidate(j) || !(raw(nb, j).missing.dot(normal) > 0.0)) continue;
+        if (std::abs(normal.dot(nb.positions[j]) - offset) > tol) continue;
+        members_.push_back(j);
+      }
+    if (members_.size() < 6) return false;
+    Vec3 centre = Vec3::Zero();
+    for (const std::uint32_t q : members_) centre += nb.positions[q];
+    centre /= static_cast<double>(members_.size());
+    Mat3 cov = Mat3::Zero();
+    for (const std::uint32_t q : members_) cov += (nb.positions[q] - centre) * (nb.positions[q] - centre).transpose();
+    const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov, Eigen::ComputeEigenvectors);
+    Vec3 fitted = eig.eigenvectors().col(0);
+    if (fitted.dot(normal) < 0.0) fitted = -fitted;
+    const double count = static_cast<double>(members_.size());
+    // a face: within a lattice step of its plane (rms), and no quadric over it bends away from the plane by
+    // more than a step across it
+    if (!(std::max(eig.eigenvalues()[0], 0.0) <= kFaceRms * kFaceRms * h * h * count)) return false;
+    const Vec3 t1 = fitted.unitOrthogonal(), t2 = fitted.cross(t1);
+    const QuadricFit quadric = fitQuadric(Gathered{nb.positions, members_}, centre, fitted, t1, t2);
+    if (quadric.ok) {
+      double bend = 0.0;
+      for (const std::uint32_t q : members_) {
+        const Vec3 d = nb.positions[q] - centre;
+        const double u = d.dot(t1), v = d.dot(t2);
+        bend = std::max(bend, std::abs(quadric.c[3] * u * u + quadric.c[4] * u * v + quadric.c[5] * v * v));
+      }
+      if (bend > kFaceBend * h) return false;
+    }
+    // the surface particles two rings beyond the face: past a face's edge the surface turns away by the
+    // edge's angle; past the lattice's flat patches on a sphere or along a cylinder's side, narrow strips
+    // of a curved surface, it turns by much less
+    beyond_.clear();
+    const double middle = fitted.dot(centre);
+    const auto visit = [&](std::uint32_t q) {
+      for (std::uint32_t e = nb.start[q]; e < nb.start[q + 1]; ++e) {
+        const std::uint32_t j = nb.neighbours[e].value;
+        if (beyondMark_[j] == markStamp_ || !candidate(j) || !(raw(nb, j).missing.dot(fitted) > 0.0)) continue;
+        if (!(std::abs(fitted.dot(nb.positions[j]) - middle) > tol)) continue;  // on the face's plane
+        beyondMark_[j] = markStamp_;
+        beyond_.push_back(j);
+      }
+    };
+    for (const std::uint32_t q : members_) visit(q);
+    for (std::size_t k = 0, end = beyond_.size(); k < end; ++k) visit(beyond_[k]);
+    turns_.clear();
+    for (const std::uint32_t j : beyond_)
+      if (const Fit& fj = fit(nb, j); !fj.normal.isZero()) turns_.push_back(fj.normal.dot(fitted));
+    if (!turns_.empty()) {
+      // the quartile of the least turned (the largest cosines)
+      const auto quartile = turns_.begin() + static_cast<std::ptrdiff_t>(turns_.size() / 4);
+      std::nth_element(turns_.begin(), quartile, turns_.end(), std::greater<>());
+      const double narrow = std::sqrt(std::max(eig.eigenvalues()[1], 0.0) / count);
+      if (*quartile > kFacetTurn && narrow <= kFacetWidth * h) return false;
+    }
+    const bool same = fitted.dot(normal) > 1.0 - 1e-12;
+    normal = fitted;
+    offset = normal.dot(centre);
+    if (same) break;
+  }
+  // the plane again through the face's outermost particles: its steps lie below it by up to a layer, the
+  // deeper ones in a pattern of the lattice that need not even out across a small face
+  for (int pass = 0; pass < 2; ++pass) {
+    double top = -std::numeric_limits<double>::infinity(), bottom = std::numeric_limits<double>::infinity();
+    for (const std::uint32_t q : members_) {
+      top = std::max(top, normal.dot(nb.positions[q]));
+      bottom = std::min(bottom, normal.dot(nb.positions[q]));
+    }
+    const double cut = top - kOutermost * (top - bottom);
+    Vec3 centre = Vec3::Zero();
+    int count = 0;
+    for (const std::uint32_t q : members_)
+      if (normal.dot(nb.positions[q]) >= cut) {
+        centre += nb.positions[q];
+        ++count;
+      }
+    if (count < 6) break;
+    centre /= count;
+    Mat3 cov = Mat3::Zero();
+    for (const std::uint32_t q : members_)
+      if (normal.dot(nb.positions[q]) >= cut) cov += (nb.positions[q] - centre) * (nb.positions[q] - centre).transpose();
+    const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov, Eigen::ComputeEigenvectors);
+    Vec3 refit = eig.eigenvectors().col(0);
+    if (refit.dot(normal) < 0.0) refit = -refit;
+    if (!(refit.dot(normal) > kSameFace) || !(eig.eigenvalues()[0] <= kPlanarSurface * eig.eigenvalues()[1])) break;
+    normal = refit;
+  }
+  return true;
+}
+
+void SurfaceEstimator::joinFaces(const Neighbourhood& nb, std::vector<SurfaceEstimate>& out) {
+  const std::size_t n = nb.positions.size();
+  if (out.size() != n) return;
+  grow(n);
+  beyondMark_.assign(n, 0);
+  regionOf_.assign(n * kFacesPerParticle, 0);
+  regionCount_.assign(n, 0);
+  faceNormals_.clear();
+  faceSizes_.clear();
+  for (std::uint32_t seed = 0; seed < n; ++seed) {
+    if (raw(nb, seed).kind != kVolume || opened(nb, seed) || regionCount_[seed] != 0) continue;
+    const Fit& fs = fit(nb, seed);
+    if (!fs.planar || fs.normal.isZero()) continue;
+    Vec3 normal = fs.normal;
+    if (!growFace(nb, seed, normal)) continue;
+    const auto id = static_cast<std::uint32_t>(faceNormals_.size());
+    faceNormals_.push_back(normal);
+    faceSizes_.push_back(static_cast<std::uint32_t>(members_.size()));
+    for (const std::uint32_t q : members_)
+      if (regionCount_[q] < kFacesPerParticle) regionOf_[q * kFacesPerParticle + regionCount_[q]++] = id;
+  }
+  // a particle on one face takes its plane, on two an edge, on three or more a corner (the largest three)
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::size_t count = regionCount_[i];
+    if (count == 0) continue;
+    std::array<std::uint32_t, kFacesPerParticle> ids{};
+    for (std::size_t k = 0; k < count; ++k) ids[k] = regionOf_[i * kFacesPerParticle + k];
+    std::stable_sort(ids.begin(), ids.begin() + static_cast<std::ptrdiff_t>(count),
+                     [&](std::uint32_t a, std::uint32_t b) { return faceSizes_[a] > faceSizes_[b]; });
+    SurfaceEstimate& e = out[i];
+    std::array<Vec3, 3> f{};
+    std::size_t fc = 0;
+    const auto add = [&](const Vec3& v) {
+      for (std::size_t j = 0; j < fc; ++j)
+        if (f[j].dot(v) > kSameFace) return;
+      if (fc < f.size()) f[fc++] = v;
+    };
+    for (std::size_t k = 0; k < count; ++k) add(faceNormals_[ids[k]]);
+    // where a face meets a curved surface (a cylinder's cap its side) the local estimate's other faces stay
+    if (e.flags & kParticleSharp)
+      for (std::size_t k = 0; k < e.faceCount; ++k) add(e.faces[k]);
+    Vec3 mean = Vec3::Zero();
+    for (std::size_t k = 0; k < fc; ++k) mean += f[k];
+    e.flags = static_cast<std::uint8_t>(kParticleSurface | (fc == 2 ? kParticleEdge : 0) | (fc >= 3 ? kParticleCorner : 0));
+    e.faces = f;
+    e.faceCount = static_cast<std::uint8_t>(fc);
+    e.normal = mean.normalized();
+  }
+}
+
 std::vector<SurfaceEstimate> estimateSurface(std::span<const Vec3> positions,
                                              std::span<const std::array<std::uint32_t, 2>> connectors) {
   const std::size_t n = positions.size();
@@ -303,6 +587,7 @@ std::vector<SurfaceEstimate> estimateSurface(std::span<const Vec3> positions,
   SurfaceEstimator estimator;
   std::vector<SurfaceEstimate> out;
   estimator.estimate({positions, start, items, {}}, all, out);
+  estimator.joinFaces({positions, start, items, {}}, out);
   return out;
 }
 

@@ -11,14 +11,19 @@
 //    particle is in a volume, and on its surface when it has fewer than four neighbours, when |m| exceeds
 //    15 % of the sum of its neighbour distances (0.15 x count x mean distance), or when a connector of it
 //    broke (it lies on a crack face).
-// A volume surface particle's normal is the best-fit plane (least-squares, the smallest principal axis) of
-// the surface particles within two connector hops whose missing vectors lie within 60 degrees of its own,
-// oriented along m: on a lattice face that plane is the face exactly, on a staircase (a face oblique to the
-// lattice, a crack across it) and on a curved surface it averages the steps. Where those particles are not
-// close to a plane (the smallest principal variance above 10 % of the middle one) the particle sits on an
-// edge or a corner: its faces are the normals of the planar surface particles within two hops that face
-// its way, clustered within 20 degrees; two clusters make an edge, three or more a corner (the three
-// largest are kept), and its normal is the mean of its faces, as the builders give a shape's edges.
+// A volume surface particle's normal is fitted to the surface particles reached through others within four
+// connector hops whose missing vectors lie within 60 degrees of its own: their best-fit plane (oriented
+// along m) where they lie within 0.3 spacings of it (rms) and a quadric height field over it does not halve
+// its squared residual (a lattice face exactly, a staircase oblique to the lattice averaged), else the slope
+// at the particle of that quadric (a curved surface, whose lattice outline is a polygon of flat runs).
+// Where the particles are not close to a plane the particle may sit on an edge or a corner: its faces are
+// the normals of the planar surface particles within two hops that face its way, clustered within 20
+// degrees; two clusters make an edge, three or more a corner (the three largest are kept), and its normal
+// is the mean of its faces, as the builders give a shape's edges.
+// Over a whole body (joinFaces), flat faces are grown from the particles whose fit is planar over the
+// surface particles within 0.6 spacings of their plane, refitted until they settle, and kept unless they
+// are lattice facets of a curved surface (narrow strips past which the surface turns by under 60 degrees);
+// a particle on one such face takes its plane, on two it lies on an edge, on three or more on a corner.
 // A crack face is made of the particles that lost a connector: a crack particle's plane is fitted to them
 // alone, within four connectors along them on its side (a staircase across the lattice counts as a plane
 // within 0.3 spacings rms), and where the crack meets older faces their tight clusters join it as the
@@ -34,6 +39,11 @@
 #include "engine/core/types.hpp"
 
 namespace volpar {
+
+/// Connector hops along the surface over which a particle's surface is fitted: for bodies at rest in their
+/// frame, and for bodies that deform (re-estimated in the step, where the wider fit's cost shows).
+inline constexpr int kSurfaceReach = 4;
+inline constexpr int kDeformingSurfaceReach = 2;
 
 /// The estimated surface at one particle.
 struct SurfaceEstimate {
@@ -53,20 +63,27 @@ struct Neighbourhood {
 };
 
 /// Estimates particles' surfaces (see the file notes). Keeps scratch between calls: estimating a few
-/// particles costs their two-hop neighbourhoods, never the whole index space.
+/// particles costs their four-hop surface patches, never the whole index space.
 class SurfaceEstimator {
  public:
   /// The estimates of `targets` (indices into the neighbourhood), in their order. With `kinds` (ParticleFlag
   /// bits per target, e.g. those a deformable body had at rest), a sheet or a chain stays one however it is
   /// bent: only its normal (or direction) follows the current positions.
+  /// `reach`: how many connector hops along the surface a particle's plane or quadric is fitted over (four
+  /// averages a staircase across the lattice best; bodies that deform, estimated every few steps, use two).
   void estimate(const Neighbourhood& nb, std::span<const ParticleId> targets, std::vector<SurfaceEstimate>& out,
-                std::span<const std::uint8_t> kinds = {});
+                std::span<const std::uint8_t> kinds = {}, int reach = kSurfaceReach);
+  /// After `estimate` over every particle of a body (`out` in index order): the body's flat faces, grown
+  /// over its surface particles from those whose own fit is planar, replace the local estimates of the
+  /// particles on them (one face: its plane; two: an edge; three or more: a corner).
+  void joinFaces(const Neighbourhood& nb, std::vector<SurfaceEstimate>& out);
 
  private:
   struct Raw {
     Vec3 missing = Vec3::Zero();
     Vec3 axis = Vec3::Zero();  // sheet: its normal; line: its direction
     double meanDistance = 0.0;
+    double spacing = 0.0;      // the nearest neighbour's distance
     std::uint8_t kind = 0;     // kInterior, kVolume, kSheet, kRim, kLine, kPoint
   };
   struct Fit {
@@ -80,15 +97,29 @@ class SurfaceEstimator {
   const Fit& fit(const Neighbourhood& nb, std::uint32_t i);
   /// i and the particles within `hops` connectors of it (with `crack`, only through particles that lost a
   /// connector).
-  void ring(const Neighbourhood& nb, std::uint32_t i, int hops, bool crack, std::vector<std::uint32_t>& out);
+  void ring(const Neighbourhood& nb, std::uint32_t i, int hops, bool crack, std::vector<std::uint32_t>& out,
+            bool surface = false);
   void grow(std::size_t n);
+
+  void nextMark();
+  /// Grows the face through `seed` whose plane starts along `normal`; true (members_ its particles, `normal`
+  /// its plane) where it is one, false where the particles are no face (too few, not flat, a lattice facet
+  /// of a curved surface).
+  bool growFace(const Neighbourhood& nb, std::uint32_t seed, Vec3& normal);
+
+  std::vector<std::uint32_t> regionOf_, members_, beyond_, beyondMark_;
+  std::vector<std::uint8_t> regionCount_;
+  std::vector<Vec3> faceNormals_;
+  std::vector<std::uint32_t> faceSizes_;
+  std::vector<double> turns_;
 
   std::vector<Raw> raw_;
   std::vector<Fit> fit_;
   std::vector<std::uint32_t> rawStamp_, fitStamp_, mark_;
   std::uint32_t stamp_ = 0, markStamp_ = 0;
+  int reach_ = kSurfaceReach;
 
-  std::vector<std::uint32_t> ring_, frontier_, next_, fitRing_;
+  std::vector<std::uint32_t> ring_, frontier_, next_, fitRing_, wideRing_;
   std::vector<Vec3> points_;
 };
 

@@ -125,7 +125,8 @@ class PlaneReference {
       const ContactFinder& f = w.contactFinder();
       kinds_.clear();
       for (const ParticleId q : ids_) kinds_.push_back(particles.flags[q.index()]);
-      estimator_.estimate({particles.position, f.adjacencyStart(), f.adjacencyList(), {}}, ids_, estimates_, kinds_);
+      estimator_.estimate({particles.position, f.adjacencyStart(), f.adjacencyList(), {}}, ids_, estimates_, kinds_,
+                          kDeformingSurfaceReach);
       for (const SurfaceEstimate& e : estimates_)
         sum += facingNormal(e.flags, e.normal, std::span<const Vec3>(e.faces.data(), e.faceCount), towards);
       return;

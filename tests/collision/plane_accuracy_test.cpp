@@ -47,11 +47,13 @@ struct Bounds {
 };
 
 /// The pairs and variants that do not meet the targets yet, at their measured level (2000 poses) rounded up:
-/// a capsule's hemispheres meeting its cylinder; estimated normals on a coarse cylinder (off the radius by
-/// the lattice's steps, the rim not marked as an edge); HCP edges and corners, whose outermost particles
-/// stand back from the solid's edge (an HCP plate's planes do not all separate); estimated normals on a
-/// tilted mesh box, whose lattice steps blur its faces; and the cylinder's few planes that do not separate
-/// every particle (its angles meet the targets).
+/// a capsule's hemispheres meeting its cylinder; estimated normals on a coarse capsule and cylinder (5 to 10
+/// particles across, whose lattice steps the fitted quadrics and curved cores do not fully smooth, most at
+/// the rim and where a hemisphere meets the side); HCP edges and corners, whose outermost particles stand
+/// back from the solid's edge (an HCP plate's planes do not all separate); estimated normals on a tilted
+/// mesh box five to eight particles a side, whose faces' planes are fitted to their steps within a degree and
+/// whose edges and corners are a band of steps; and the few planes on curved or stepped bodies that do not
+/// separate every particle.
 struct Shortfall {
   const char* pair;
   const char* variant;
@@ -59,15 +61,14 @@ struct Shortfall {
 };
 const Shortfall kShortfalls[] = {
     {"box_box", "hcp", {0.5, 2.0, 2.0, 12.0, 0.025}},
-    {"sphere_sphere", "estimated", {0.8, 2.0, 2.0, 8.0, 0.0}},
     {"capsule_box", "shape", {0.5, 2.5, 2.0, 8.0, 0.01}},
-    {"capsule_box", "estimated", {0.5, 5.5, 3.5, 18.0, 0.01}},
+    {"capsule_box", "estimated", {0.5, 5.5, 3.0, 8.0, 0.01}},
     {"capsule_box", "hcp", {0.5, 2.5, 2.0, 8.0, 0.02}},
     {"cylinder_box", "shape", {0.5, 2.0, 2.0, 8.0, 0.005}},
-    {"cylinder_box", "estimated", {0.5, 16.0, 10.0, 38.0, 0.04}},
+    {"cylinder_box", "estimated", {0.5, 4.5, 2.5, 15.0, 0.015}},
     {"cylinder_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.01}},
     {"mesh_box", "shape", {0.5, 2.0, 2.0, 11.0, 0.01}},
-    {"mesh_box", "estimated", {3.5, 25.0, 10.0, 35.0, 0.025}},
+    {"mesh_box", "estimated", {1.0, 3.0, 2.0, 14.0, 0.015}},
     {"mesh_box", "hcp", {0.5, 2.0, 2.0, 17.0, 0.025}},
     {"plate_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.015}},
 };
