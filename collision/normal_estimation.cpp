@@ -1,6 +1,7 @@
 #include "collision/normal_estimation.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <complex>
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -24,7 +25,9 @@ constexpr double kFacesOut = 0.3;            // a face around an edge particle f
 
 bool opened(const Neighbourhood& nb, std::uint32_t i) { return !nb.opened.empty() && nb.opened[i] != 0; }
 
-constexpr double kCurved = 0.5;         // a quadric that halves a plane's squared residual: a curved surface
+constexpr double kCurved = 0.5;
+constexpr double kNoBend = 0.01;  // squared residual, in steps^2 per point, below which no bend is looked for
+constexpr double kOneWay = 0.3;  // a quadric whose lesser curvature is below this share of the greater bends one way         // a quadric that halves a plane's squared residual: a curved surface
 constexpr std::size_t kFacesPerParticle = 4;
 constexpr double kFaceSlab = 0.6;       // a face's particles lie within this many spacings of its plane
 constexpr double kFaceRms = 0.35;       // ... and within this many of it (root mean square)
@@ -63,6 +66,86 @@ QuadricFit fitQuadric(const Points& points, const Vec3& origin, const Vec3& n, c
   return q;
 }
 
+/// The gradient at the origin of the algebraic sphere (D = 3) or circle (D = 2)
+/// s(x) = u0 + u . x + u4 |x|^2 = 0 that best fits `points` (coordinates about the origin, about a unit
+/// apart), with Pratt's normalisation |u|^2 - 4 u0 u4 = 1 (a plane is the sphere of infinite radius): it
+/// points from the centre through the origin on a convex side. Unlike a height field over a plane, a sphere
+/// goes round a polygon of flat runs (a lattice's outline of a circle) to its circle.
+template <int D>
+bool prattGradient(std::span<const Eigen::Matrix<double, D, 1>> points, Eigen::Matrix<double, D, 1>& out) {
+  constexpr int K = D + 2;
+  using MatK = Eigen::Matrix<double, K, K>;
+  using VecK = Eigen::Matrix<double, K, 1>;
+  MatK m = MatK::Zero();
+  for (const auto& d : points) {
+    VecK z;
+    z[0] = 1.0;
+    z.template segment<D>(1) = d;
+    z[D + 1] = d.squaredNorm();
+    m += z * z.transpose();
+  }
+  MatK pratt = MatK::Zero();
+  pratt(0, D + 1) = pratt(D + 1, 0) = -2.0;
+  for (int k = 1; k <= D; ++k) pratt(k, k) = 1.0;
+  const Eigen::LDLT<MatK> ldlt(m);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
+  // m u = eta pratt u with the smallest eta >= 0: the largest eigenvalue 1 / eta of m^-1 pratt
+  const MatK a = ldlt.solve(pratt);
+  const Eigen::EigenSolver<MatK> eig(a, true);
+  if (eig.info() != Eigen::Success) return false;
+  int best = -1;
+  double largest = 0.0;
+  for (int k = 0; k < K; ++k) {
+    const std::complex<double> l = eig.eigenvalues()[k];
+    if (std::abs(l.imag()) <= 1e-9 * std::abs(l.real()) && l.real() > largest) {
+      largest = l.real();
+      best = k;
+    }
+  }
+  if (best < 0) return false;
+  out = eig.eigenvectors().col(best).real().template segment<D>(1);
+  return out.allFinite() && out.norm() > 0.0;
+}
+
+/// The normal at x of a curved surface through `points`, from its quadric over the plane (t1, t2, n): a
+/// sphere's where it bends both ways, a cylinder's (a circle across its axis, the quadric's straight
+/// direction) where it bends one way.
+bool roundNormal(std::span<const Vec3> points, const Vec3& x, double scale, const Vec3& n, const Vec3& t1,
+                 const Vec3& t2, const Eigen::Matrix<double, 6, 1>& c, Vec3& normal) {
+  Eigen::Matrix2d hess;
+  hess << 2.0 * c[3], c[4], c[4], 2.0 * c[5];
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> k(hess);
+  const Eigen::Vector2d kappa = k.eigenvalues();
+  const int straight = std::abs(kappa[0]) <= std::abs(kappa[1]) ? 0 : 1;
+  if (std::abs(kappa[straight]) < kOneWay * std::abs(kappa[1 - straight])) {
+    const Eigen::Vector2d e = k.eigenvectors().col(straight);
+    const Vec3 axis = (e[0] * t1 + e[1] * t2).normalized();
+    const Vec3 b1 = n, b2 = axis.cross(n);
+    std::array<Eigen::Vector2d, 256> across;
+    std::size_t count = 0;
+    for (const Vec3& p : points) {
+      if (count == across.size()) break;
+      const Vec3 d = (p - x) / scale;
+      across[count++] = Eigen::Vector2d(d.dot(b1), d.dot(b2));
+    }
+    Eigen::Vector2d g;
+    if (!prattGradient<2>(std::span<const Eigen::Vector2d>(across.data(), count), g)) return false;
+    normal = (g[0] * b1 + g[1] * b2).normalized();
+  } else {
+    std::array<Vec3, 256> about;
+    std::size_t count = 0;
+    for (const Vec3& p : points) {
+      if (count == about.size()) break;
+      about[count++] = (p - x) / scale;
+    }
+    Vec3 g;
+    if (!prattGradient<3>(std::span<const Vec3>(about.data(), count), g)) return false;
+    normal = g.normalized();
+  }
+  if (normal.dot(n) < 0.0) normal = -normal;
+  return true;
+}
+
 /// The positions of some particles, as a range of points.
 struct Gathered {
   std::span<const Vec3> positions;
@@ -98,6 +181,11 @@ bool surfaceThrough(std::span<const Vec3> points, const Vec3& x, const Vec3& out
   Vec3 n0 = eig.eigenvectors().col(0);
   if (n0.dot(out) < 0.0) n0 = -n0;
   const double n = static_cast<double>(points.size());
+  if (std::max(l[0], 0.0) <= kNoBend * step * step * n) {  // flat within a small part of a step: a plane
+    normal = n0;
+    planar = true;
+    return true;
+  }
   // a quadric height field over the plane about x
   const Vec3 t1 = n0.unitOrthogonal(), t2 = n0.cross(t1);
   const QuadricFit q = fitQuadric(points, x, n0, t1, t2);
@@ -106,13 +194,20 @@ bool surfaceThrough(std::span<const Vec3> points, const Vec3& x, const Vec3& out
   // the plane's and the quadric's squared residuals: a staircase is a plane the quadric hardly improves on,
   // a curved surface one whose bend it takes up
   const double planeSs = std::max(l[0], 0.0), quadricSs = q.residual;
-  const bool bends = quadric && planeSs > 0.01 * step * step * n && quadricSs < kCurved * planeSs;
+  const bool bends = quadric && quadricSs < kCurved * planeSs;
   if (planeSs <= step * step * n && !bends) {
     normal = n0;
     planar = true;
     return true;
   }
   if (!quadric) return false;
+  // curved: the sphere or cylinder through the points, whose normal the quadric's slope only approaches
+  // where the lattice's steps flatten it
+  if (Vec3 round; roundNormal(points, x, step / kStaircase, n0, t1, t2, c, round)) {
+    normal = round;
+    planar = false;
+    return true;
+  }
   const Vec3 g = n0 - c[1] * t1 - c[2] * t2;
   if (!g.allFinite() || !(g.norm() > 0.0)) return false;
   normal = g.normalized();

@@ -14,8 +14,10 @@
 // A volume surface particle's normal is fitted to the surface particles reached through others within four
 // connector hops whose missing vectors lie within 60 degrees of its own: their best-fit plane (oriented
 // along m) where they lie within 0.3 spacings of it (rms) and a quadric height field over it does not halve
-// its squared residual (a lattice face exactly, a staircase oblique to the lattice averaged), else the slope
-// at the particle of that quadric (a curved surface, whose lattice outline is a polygon of flat runs).
+// its squared residual (a lattice face exactly, a staircase oblique to the lattice averaged); else the
+// surface is curved, and the normal is that of the best-fit algebraic sphere (where the quadric bends both
+// ways) or of the circle across the quadric's straight direction (where it bends one way: a cylinder), at
+// the particle, which goes round the flat runs of the lattice's outline to the curve.
 // Where the particles are not close to a plane the particle may sit on an edge or a corner: its faces are
 // the normals of the planar surface particles within two hops that face its way, clustered within 20
 // degrees; two clusters make an edge, three or more a corner (the three largest are kept), and its normal
