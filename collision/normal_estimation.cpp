@@ -1,9 +1,9 @@
 #include "collision/normal_estimation.hpp"
 
 #include <Eigen/Eigenvalues>
-#include <complex>
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <functional>
 #include <limits>
 
@@ -25,10 +25,11 @@ constexpr double kFacesOut = 0.3;            // a face around an edge particle f
 
 bool opened(const Neighbourhood& nb, std::uint32_t i) { return !nb.opened.empty() && nb.opened[i] != 0; }
 
-constexpr double kCurved = 0.5;
-constexpr double kNoBend = 0.01;  // squared residual, in steps^2 per point, below which no bend is looked for
-constexpr double kOneWay = 0.3;  // a quadric whose lesser curvature is below this share of the greater bends one way         // a quadric that halves a plane's squared residual: a curved surface
-constexpr std::size_t kFacesPerParticle = 4;
+constexpr double kCurved = 0.5;         // a quadric that halves a plane's squared residual: a curved surface
+constexpr double kNoBend = 0.01;        // squared residual, in steps^2 per point, below which no bend is sought
+constexpr double kOneWay = 0.3;         // a quadric whose lesser curvature is under this share of the greater
+                                        // bends one way (a cylinder)
+constexpr std::size_t kFacesPerParticle = 4;  // faces a particle may be found on (the three largest are kept)
 constexpr double kFaceSlab = 0.6;       // a face's particles lie within this many spacings of its plane
 constexpr double kFaceRms = 0.35;       // ... and within this many of it (root mean square)
 constexpr double kFaceBend = 0.6;       // the most, in spacings, a quadric over a face may bend away from it
@@ -164,21 +165,42 @@ struct Gathered {
   [[nodiscard]] It end() const { return {this, ids.size()}; }
 };
 
+/// The best-fit plane of some points: their centroid and the principal axes of their spread about it
+/// (`variances` ascending, each the sum of squared offsets along its axis; axes.col(0) is the normal).
+struct PlaneFit {
+  Vec3 centre = Vec3::Zero();
+  Vec3 variances = Vec3::Zero();
+  Mat3 axes = Mat3::Identity();
+  std::size_t count = 0;
+};
+template <class Points>
+PlaneFit fitPlane(const Points& points) {
+  PlaneFit f;
+  for (const Vec3& p : points) {
+    f.centre += p;
+    ++f.count;
+  }
+  if (f.count == 0) return f;
+  f.centre /= static_cast<double>(f.count);
+  Mat3 cov = Mat3::Zero();
+  for (const Vec3& p : points) cov += (p - f.centre) * (p - f.centre).transpose();
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov, Eigen::ComputeEigenvectors);
+  f.variances = eig.eigenvalues();
+  f.axes = eig.eigenvectors();
+  return f;
+}
+
 /// The surface through `points` at x, oriented along `out`: their best-fit plane where they lie within a
-/// lattice step of it (rms `step`), else a quadric height field over that plane, whose slope at x is the
-/// normal. False where the points are too few to tell.
+/// lattice step of it (rms `step`) and a quadric height field over it does not take up their residual;
+/// else a curved surface, whose normal at x is its best-fit sphere's or cylinder's (`roundNormal`), or the
+/// quadric's slope where that fit fails. False where the points are too few to tell.
 bool surfaceThrough(std::span<const Vec3> points, const Vec3& x, const Vec3& out, double step, Vec3& normal,
                     bool& planar) {
   if (points.size() < 6) return false;
-  Vec3 centre = Vec3::Zero();
-  for (const Vec3& p : points) centre += p;
-  centre /= static_cast<double>(points.size());
-  Mat3 cov = Mat3::Zero();
-  for (const Vec3& p : points) cov += (p - centre) * (p - centre).transpose();
-  const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov, Eigen::ComputeEigenvectors);
-  const Vec3 l = eig.eigenvalues();
+  const PlaneFit plane = fitPlane(points);
+  const Vec3& l = plane.variances;
   if (!(l[0] <= 0.5 * l[1])) return false;  // not spread over a surface
-  Vec3 n0 = eig.eigenvectors().col(0);
+  Vec3 n0 = plane.axes.col(0);
   if (n0.dot(out) < 0.0) n0 = -n0;
   const double n = static_cast<double>(points.size());
   if (std::max(l[0], 0.0) <= kNoBend * step * step * n) {  // flat within a small part of a step: a plane
@@ -189,26 +211,24 @@ bool surfaceThrough(std::span<const Vec3> points, const Vec3& x, const Vec3& out
   // a quadric height field over the plane about x
   const Vec3 t1 = n0.unitOrthogonal(), t2 = n0.cross(t1);
   const QuadricFit q = fitQuadric(points, x, n0, t1, t2);
-  const bool quadric = q.ok;
-  const Eigen::Matrix<double, 6, 1>& c = q.c;
   // the plane's and the quadric's squared residuals: a staircase is a plane the quadric hardly improves on,
   // a curved surface one whose bend it takes up
-  const double planeSs = std::max(l[0], 0.0), quadricSs = q.residual;
-  const bool bends = quadric && quadricSs < kCurved * planeSs;
+  const double planeSs = std::max(l[0], 0.0);
+  const bool bends = q.ok && q.residual < kCurved * planeSs;
   if (planeSs <= step * step * n && !bends) {
     normal = n0;
     planar = true;
     return true;
   }
-  if (!quadric) return false;
+  if (!q.ok) return false;
   // curved: the sphere or cylinder through the points, whose normal the quadric's slope only approaches
   // where the lattice's steps flatten it
-  if (Vec3 round; roundNormal(points, x, step / kStaircase, n0, t1, t2, c, round)) {
+  if (Vec3 round; roundNormal(points, x, step / kStaircase, n0, t1, t2, q.c, round)) {
     normal = round;
     planar = false;
     return true;
   }
-  const Vec3 g = n0 - c[1] * t1 - c[2] * t2;
+  const Vec3 g = n0 - q.c[1] * t1 - q.c[2] * t2;
   if (!g.allFinite() || !(g.norm() > 0.0)) return false;
   normal = g.normalized();
   planar = false;
@@ -315,10 +335,11 @@ const SurfaceEstimator::Fit& SurfaceEstimator::fit(const Neighbourhood& nb, std:
   f = Fit{};
   const Raw& own = raw(nb, i);
   if (own.kind != kVolume) return f;
-  // the surface particles of the two-hop neighbourhood on the same side as this one; on a crack face, the
-  // particles that lost a connector, within four connectors along them (they are the face, wherever it
-  // meets the body's older faces, whose particles it leaves out; a crack across the lattice is a staircase,
-  // whose plane a wider patch averages better)
+  // off a crack: the surface patch along the surface (`surfaceThrough`), or where it holds too few points to
+  // tell, the plane of the surface particles of the two-hop neighbourhood on the same side as this one; on
+  // a crack face, the particles that lost a connector, within four connectors along them (they are the
+  // face, wherever it meets the body's older faces, whose particles it leaves out; a crack across the
+  // lattice is a staircase, whose plane a wider patch averages better)
   Vec3 m = own.missing;
   points_.clear();
   Vec3 sum = Vec3::Zero();
@@ -367,20 +388,15 @@ const SurfaceEstimator::Fit& SurfaceEstimator::fit(const Neighbourhood& nb, std:
     f.planar = false;
     return f;
   }
-  Vec3 centre = Vec3::Zero();
-  for (const Vec3& x : points_) centre += x;
-  centre /= static_cast<double>(points_.size());
-  Mat3 cov = Mat3::Zero();
-  for (const Vec3& x : points_) cov += (x - centre) * (x - centre).transpose();
-  const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov, Eigen::ComputeEigenvectors);
-  Vec3 n = eig.eigenvectors().col(0);
+  const PlaneFit plane = fitPlane(points_);
+  Vec3 n = plane.axes.col(0);
   if (n.dot(m) < 0.0) n = -n;
   f.normal = n;
-  f.planar = eig.eigenvalues()[0] <= kPlanarSurface * eig.eigenvalues()[1];
+  f.planar = plane.variances[0] <= kPlanarSurface * plane.variances[1];
   // a crack across the lattice is a staircase whose steps are at most a layer high: within a third of a
   // spacing of its plane (root mean square) it is that plane, however small the patch of it in reach
   const double stepHeight = kStaircase * own.meanDistance;
-  if (crack && eig.eigenvalues()[0] <= stepHeight * stepHeight * static_cast<double>(points_.size())) f.planar = true;
+  if (crack && plane.variances[0] <= stepHeight * stepHeight * static_cast<double>(points_.size())) f.planar = true;
   return f;
 }
 
@@ -528,18 +544,14 @@ bool SurfaceEstimator::growFace(const Neighbourhood& nb, std::uint32_t seed, Vec
         members_.push_back(j);
       }
     if (members_.size() < 6) return false;
-    Vec3 centre = Vec3::Zero();
-    for (const std::uint32_t q : members_) centre += nb.positions[q];
-    centre /= static_cast<double>(members_.size());
-    Mat3 cov = Mat3::Zero();
-    for (const std::uint32_t q : members_) cov += (nb.positions[q] - centre) * (nb.positions[q] - centre).transpose();
-    const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov, Eigen::ComputeEigenvectors);
-    Vec3 fitted = eig.eigenvectors().col(0);
+    const PlaneFit plane = fitPlane(Gathered{nb.positions, members_});
+    const Vec3& centre = plane.centre;
+    Vec3 fitted = plane.axes.col(0);
     if (fitted.dot(normal) < 0.0) fitted = -fitted;
     const double count = static_cast<double>(members_.size());
     // a face: within a lattice step of its plane (rms), and no quadric over it bends away from the plane by
     // more than a step across it
-    if (!(std::max(eig.eigenvalues()[0], 0.0) <= kFaceRms * kFaceRms * h * h * count)) return false;
+    if (!(std::max(plane.variances[0], 0.0) <= kFaceRms * kFaceRms * h * h * count)) return false;
     const Vec3 t1 = fitted.unitOrthogonal(), t2 = fitted.cross(t1);
     const QuadricFit quadric = fitQuadric(Gathered{nb.positions, members_}, centre, fitted, t1, t2);
     if (quadric.ok) {
@@ -574,7 +586,7 @@ bool SurfaceEstimator::growFace(const Neighbourhood& nb, std::uint32_t seed, Vec
       // the quartile of the least turned (the largest cosines)
       const auto quartile = turns_.begin() + static_cast<std::ptrdiff_t>(turns_.size() / 4);
       std::nth_element(turns_.begin(), quartile, turns_.end(), std::greater<>());
-      const double narrow = std::sqrt(std::max(eig.eigenvalues()[1], 0.0) / count);
+      const double narrow = std::sqrt(std::max(plane.variances[1], 0.0) / count);
       if (*quartile > kFacetTurn && narrow <= kFacetWidth * h) return false;
     }
     const bool same = fitted.dot(normal) > 1.0 - 1e-12;
@@ -591,22 +603,14 @@ bool SurfaceEstimator::growFace(const Neighbourhood& nb, std::uint32_t seed, Vec
       bottom = std::min(bottom, normal.dot(nb.positions[q]));
     }
     const double cut = top - kOutermost * (top - bottom);
-    Vec3 centre = Vec3::Zero();
-    int count = 0;
+    beyond_.clear();  // (the outer half, in members' order)
     for (const std::uint32_t q : members_)
-      if (normal.dot(nb.positions[q]) >= cut) {
-        centre += nb.positions[q];
-        ++count;
-      }
-    if (count < 6) break;
-    centre /= count;
-    Mat3 cov = Mat3::Zero();
-    for (const std::uint32_t q : members_)
-      if (normal.dot(nb.positions[q]) >= cut) cov += (nb.positions[q] - centre) * (nb.positions[q] - centre).transpose();
-    const Eigen::SelfAdjointEigenSolver<Mat3> eig(cov, Eigen::ComputeEigenvectors);
-    Vec3 refit = eig.eigenvectors().col(0);
+      if (normal.dot(nb.positions[q]) >= cut) beyond_.push_back(q);
+    if (beyond_.size() < 6) break;
+    const PlaneFit outer = fitPlane(Gathered{nb.positions, beyond_});
+    Vec3 refit = outer.axes.col(0);
     if (refit.dot(normal) < 0.0) refit = -refit;
-    if (!(refit.dot(normal) > kSameFace) || !(eig.eigenvalues()[0] <= kPlanarSurface * eig.eigenvalues()[1])) break;
+    if (!(refit.dot(normal) > kSameFace) || !(outer.variances[0] <= kPlanarSurface * outer.variances[1])) break;
     normal = refit;
   }
   return true;

@@ -121,7 +121,7 @@ class SurfaceEstimator {
   std::uint32_t stamp_ = 0, markStamp_ = 0;
   int reach_ = kSurfaceReach;
 
-  std::vector<std::uint32_t> ring_, frontier_, next_, fitRing_, wideRing_;
+  std::vector<std::uint32_t> ring_, fitRing_, wideRing_;
   std::vector<Vec3> points_;
 };
 
