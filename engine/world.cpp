@@ -62,6 +62,12 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   if (!def.material.valid() || def.material.index() >= materials_.size())
     return Error{"", 0, 0, "body '" + def.name + "' refers to an unknown material"};
   const Material& material = materials_[def.material.index()];
+  if (def.connectors.kind == ConnectorKind::Bond) {
+    if (def.kind == BodyKind::Deformable)
+      return Error{"", 0, 0, "body '" + def.name + "' is deformable; bonds join the particles of rigid bodies (deformable ones take springs or rods)"};
+    if (!(def.connectors.bond.youngsModulus > 0.0) || !std::isfinite(def.connectors.bond.youngsModulus))
+      return Error{"", 0, 0, "body '" + def.name + "' has bonds without a positive Young's modulus"};
+  }
   // input a step could not survive: non-finite values, absurd sizes
   constexpr double kWorldLimit = 1e9;  // [m]
   for (std::size_t i = 0; i < n; ++i) {
@@ -165,7 +171,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     const ParticleId a(first.index() + c[0]);
     const ParticleId b(first.index() + c[1]);
     const double rest = (cloud.positions[c[1]] - cloud.positions[c[0]]).norm();
-    const ConnectorId cid = connectors_.add(a, b, rest, def.connectors);
+    const ConnectorId cid = addConnector(a, b, rest, def.connectors);
     bodyConnectors_.back().push_back(cid);
     connectorDirection_.resize(connectors_.size(), Vec3::Zero());
     if (def.kind == BodyKind::Deformable) {
@@ -175,6 +181,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   }
   bodies_.add(state, std::move(info));
   rodForces_.emplace_back();
+  bondLoads_.emplace_back();
   bodyBoxes_.emplace_back();
 
   if (def.kind == BodyKind::Deformable) {
@@ -191,12 +198,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   } else {
     if (def.kind == BodyKind::Rigid) rigidBodies_.push_back(id);
     updateRigidParticles(id);
-    const bool breakable = std::isfinite(def.connectors.breakLimit) || std::isfinite(def.connectors.compressionLimit);
-    if (def.kind == BodyKind::Rigid && breakable && !bodyConnectors_[id.index()].empty()) {
-      rodForces_[id.index()] = std::make_unique<RodForces>();
-      rodForces_[id.index()]->build(bodies_.info[id.index()], particles_, connectors_, bodyConnectors_[id.index()]);
-      breakableRigid_.push_back(id);
-    }
+    if (def.kind == BodyKind::Rigid) buildLattice(id);
   }
   for (std::size_t i = 0; i < n; ++i) maxRadius_ = std::max(maxRadius_, cloud.radii[i]);
   opened_.resize(particles_.size(), 0);
@@ -261,229 +263,6 @@ void World::refreshContacts() {
   stats_.unvalidatedPatches = found.unvalidatedPatches;
   stats_.contactLinePatches = found.contactLinePatches;
   stats_.lookAheadsDecided = found.lookAheadsDecided;
-}
-
-void World::applyBreakage() {
-  breakEvents_.clear();
-  seeds_.clear();
-  bool anyBroken = false;
-  // rigid bodies: the rods' forces in the elastic lattice under this step's loads
-  for (std::size_t k = 0; k < breakableRigid_.size(); ++k) {
-    const BodyId id = breakableRigid_[k];
-    RodForces* rf = rodForces_[id.index()].get();
-    if (!rf || !bodies_.info[id.index()].alive) continue;
-    rf->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, rodForceScratch_);
-    bool broke = false;
-    const std::span<const ConnectorId> rods = rf->rods();
-    for (std::size_t r = 0; r < rods.size(); ++r) {
-      const std::size_t c = rods[r].index();
-      // (tension above the tensile strength, or compression above the compressive strength)
-      if (!(rodForceScratch_[r] > connectors_.breakLimit[c] || -rodForceScratch_[r] > connectors_.compressionLimit[c])) continue;
-      connectors_.broken[c] = 1;
-      opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
-      breakEvents_.push_back({stepIndex_ + 1, rods[r], connectors_.a[c], connectors_.b[c], id, ConnectorKind::Rod, rodForceScratch_[r]});
-      seeds_.push_back(connectors_.a[c]);
-      seeds_.push_back(connectors_.b[c]);
-      broke = true;
-    }
-    if (!broke) continue;
-    anyBroken = true;
-    std::vector<std::uint32_t> component;
-    const std::size_t parts =
-        connectedComponents(bodies_.info[id.index()].particles, connectors_, bodyConnectors_[id.index()], component);
-    if (parts > 1) {
-      splitBody(id, component, parts);
-    } else {
-      std::vector<ConnectorId> intact;
-      for (const ConnectorId c : bodyConnectors_[id.index()])
-        if (!connectors_.broken[c.index()]) intact.push_back(c);
-      rodForces_[id.index()]->build(bodies_.info[id.index()], particles_, connectors_, intact);
-    }
-  }
-  // deformable bodies: springs past their strain limit, rods past their strength
-  for (const ConnectorId cid : deformableConnectors_) {
-    const std::size_t c = cid.index();
-    if (connectors_.broken[c] || (!std::isfinite(connectors_.breakLimit[c]) && !std::isfinite(connectors_.compressionLimit[c])))
-      continue;
-    double value;
-    bool breaks;
-    if (connectors_.kind[c] == ConnectorKind::Spring) {
-      const double len = (particles_.position[connectors_.b[c].index()] - particles_.position[connectors_.a[c].index()]).norm();
-      value = std::abs(len / connectors_.restLength[c] - 1.0);
-      breaks = value > connectors_.breakLimit[c];
-    } else {
-      value = deformableForces_[c];  // (tension positive)
-      breaks = value > connectors_.breakLimit[c] || -value > connectors_.compressionLimit[c];
-    }
-    if (!breaks) continue;
-    connectors_.broken[c] = 1;
-    opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
-    anyBroken = true;
-    breakEvents_.push_back({stepIndex_ + 1, cid, connectors_.a[c], connectors_.b[c], particles_.body[connectors_.a[c].index()],
-                            connectors_.kind[c], value});
-    seeds_.push_back(connectors_.a[c]);
-    seeds_.push_back(connectors_.b[c]);
-  }
-  stats_.connectorsBroken = breakEvents_.size();
-  if (anyBroken) contactFinder_.refreshAdjacency(particles_, connectors_);
-  // the faces a break opened: the particles within two connectors of it (their neighbourhoods changed)
-  if (!seeds_.empty()) recomputeNormalsAround(seeds_, 2);
-  // deformable regions that bent or stretched
-  seedDeformedNormals();
-}
-
-void World::seedDeformedNormals() {
-  seeds_.clear();
-  const double cosTurn = std::cos(settings_.normalTurnThreshold);
-  for (const ConnectorId cid : deformableConnectors_) {
-    const std::size_t c = cid.index();
-    if (connectors_.broken[c]) continue;
-    const ParticleId a = connectors_.a[c], b = connectors_.b[c];
-    const Vec3 d = particles_.position[b.index()] - particles_.position[a.index()];
-    const double len = d.norm();
-    if (!(len > 0.0)) continue;
-    const Vec3 local = bodies_.state[particles_.body[a.index()].index()].orientation.conjugate() * (d / len);
-    const bool stretched = std::abs(len / connectors_.restLength[c] - 1.0) > settings_.normalStrainThreshold;
-    if (!stretched && local.dot(connectorDirection_[c]) >= cosTurn) continue;
-    connectorDirection_[c] = local;
-    seeds_.push_back(a);
-    seeds_.push_back(b);
-  }
-  if (!seeds_.empty()) recomputeNormalsAround(seeds_, 1);
-}
-
-void World::recomputeNormalsAround(std::span<const ParticleId> seeds, int rings) {
-  // the seeds and their neighbours within `rings` connectors, each once
-  ringMark_.resize(particles_.size(), 0);
-  if (++ringStamp_ == 0) {
-    std::fill(ringMark_.begin(), ringMark_.end(), 0u);
-    ringStamp_ = 1;
-  }
-  ringScratch_.clear();
-  for (const ParticleId s : seeds)
-    if (ringMark_[s.index()] != ringStamp_) {
-      ringMark_[s.index()] = ringStamp_;
-      ringScratch_.push_back(s);
-    }
-  std::size_t frontierBegin = 0;
-  for (int r = 0; r < rings; ++r) {
-    const std::size_t frontierEnd = ringScratch_.size();
-    for (std::size_t i = frontierBegin; i < frontierEnd; ++i)
-      for (const ParticleId n : contactFinder_.neighbours(ringScratch_[i]))
-        if (ringMark_[n.index()] != ringStamp_) {
-          ringMark_[n.index()] = ringStamp_;
-          ringScratch_.push_back(n);
-        }
-    frontierBegin = frontierEnd;
-  }
-  std::sort(ringScratch_.begin(), ringScratch_.end());
-  recomputeNormals(ringScratch_);
-}
-
-void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component, std::size_t components) {
-  const BodyInfo parentInfo = bodies_.info[parentId.index()];  // copy: the store grows below
-  const BodyState parentState = bodies_.state[parentId.index()];
-  const Quat shapeOrientation = bodies_.shapeOrientation(parentId);
-  const Vec3 shapeOrigin = bodies_.shapeOrigin(parentId);
-  const std::vector<ConnectorId> parentConnectors = bodyConnectors_[parentId.index()];
-  for (std::size_t part = 0; part < components; ++part) {
-    std::vector<ParticleId> ids;
-    for (std::size_t i = 0; i < parentInfo.particles.size(); ++i)
-      if (component[i] == part) ids.push_back(parentInfo.particles[i]);
-    std::vector<Vec3> x;
-    std::vector<double> m, own;
-    for (const ParticleId q : ids) {
-      x.push_back(particles_.position[q.index()]);
-      m.push_back(particles_.mass[q.index()]);
-      own.push_back(particles_.ownInertia[q.index()]);
-    }
-    // mass properties from the fragment's own particles, in the world, plus its share (by mass) of what its
-    // parent's inertia added to its particles': the fragments' inertias about the parent's centre sum to the
-    // parent's, so the split keeps angular momentum
-    MassProperties mp = computeMassProperties(x, m, own);
-    const Mat3 parentAxes = parentState.orientation.toRotationMatrix();
-    const Mat3 share = (mp.mass / parentInfo.mass) * parentAxes * parentInfo.inertiaResidual * parentAxes.transpose();
-    mp.inertia += share;
-    const PrincipalAxes axes = principalAxes(mp.inertia);
-    const BodyId id(bodies_.size());
-    BodyInfo info;
-    // "wall/17": the original body's name and the fragment's own body index
-    info.name = parentInfo.name.substr(0, parentInfo.name.find('/')) + "/" + std::to_string(id.value);
-    info.kind = BodyKind::Rigid;
-    info.material = parentInfo.material;
-    info.mass = mp.mass;
-    info.inertiaLocal = axes.moments;
-    // the fragment keeps its parent's shape frame
-    info.principalInShape = (shapeOrientation.conjugate() * axes.rotation).normalized();
-    info.comInShape = shapeOrientation.conjugate() * (mp.centre - shapeOrigin);
-    {
-      const Mat3 r = axes.rotation.toRotationMatrix();
-      info.inertiaResidual = r.transpose() * share * r;
-    }
-    info.particles = ids;
-    info.createdStep = stepIndex_ + 1;
-    info.parent = parentId;
-    BodyState state;
-    state.position = mp.centre;
-    state.orientation = axes.rotation;
-    // velocity inherited from the parent's rigid motion: v + w x r
-    state.linearVelocity = parentState.linearVelocity + parentState.angularVelocity.cross(mp.centre - parentState.position);
-    state.angularVelocity = parentState.angularVelocity;
-    state.invMass = 1.0 / mp.mass;
-    state.invInertiaLocal = axes.moments.cwiseInverse();
-    updateWorldInertia(state);
-    const Quat toLocal = axes.rotation.conjugate();
-    for (const ParticleId q : ids) {
-      const std::size_t i = q.index();
-      particles_.body[i] = id;
-      particles_.local[i] = toLocal * (particles_.position[i] - mp.centre);
-      const std::int32_t k = particles_.normalIndex[i];
-      if (k >= 0) {
-        // the cached normal (and its faces) from the parent's frame to the fragment's, in place
-        std::array<Vec3, 3> faces{};
-        const std::span<const Vec3> old = normals_.faces(k);
-        for (std::size_t f = 0; f < old.size(); ++f) faces[f] = toLocal * (parentState.orientation * old[f]);
-        normals_.set(k, toLocal * (parentState.orientation * normals_[k]), std::span<const Vec3>(faces.data(), old.size()));
-      }
-    }
-    bodies_.add(state, std::move(info));
-    bodyBoxes_.emplace_back();
-    rodForces_.emplace_back();
-    bodyConnectors_.emplace_back();
-    std::vector<std::uint8_t> inPart(particles_.size(), 0);
-    for (const ParticleId q : ids) inPart[q.index()] = 1;
-    for (const ConnectorId c : parentConnectors)
-      if (inPart[connectors_.a[c.index()].index()] && inPart[connectors_.b[c.index()].index()]) bodyConnectors_.back().push_back(c);
-    rigidBodies_.push_back(id);
-    updateRigidParticles(id);
-    broadphase_.addBody(id, bodyBoxes_[id.index()], false);
-    contactFinder_.addBody(id, particles_, bodies_);
-    std::vector<ConnectorId> intact;
-    for (const ConnectorId c : bodyConnectors_.back())
-      if (!connectors_.broken[c.index()]) intact.push_back(c);
-    if (!intact.empty()) {
-      rodForces_.back() = std::make_unique<RodForces>();
-      rodForces_.back()->build(bodies_.info[id.index()], particles_, connectors_, intact);
-      breakableRigid_.push_back(id);
-    }
-    ++stats_.bodiesCreated;
-  }
-  // the parent is retired: it keeps its id and history but no particles
-  BodyInfo& retired = bodies_.info[parentId.index()];
-  retired.alive = false;
-  retired.retiredStep = stepIndex_ + 1;
-  retired.particles.clear();
-  bodies_.state[parentId.index()].invMass = 0.0;
-  broadphase_.removeBody(parentId);
-  rodForces_[parentId.index()].reset();
-  rigidBodies_.erase(std::find(rigidBodies_.begin(), rigidBodies_.end(), parentId));
-  contactsStale_ = true;
-}
-
-std::size_t World::recomputeNormals(std::span<const ParticleId> ids) {
-  const std::size_t n = normalUpdater_.recompute(ids, particles_, bodies_, contactFinder_, opened_, normals_);
-  stats_.normalsRecomputed += n;
-  return n;
 }
 
 void World::detectCollisions() {
@@ -719,8 +498,8 @@ void World::buildContactPoints() {
         }
         if (count == 0) mode = kNone;
       }
-      const bool rigidPair = sideA.kind != BodyKind::Deformable && !rodForces_[patch.a.index()] &&
-                             (!patch.b.valid() || (sideB.kind != BodyKind::Deformable && !rodForces_[patch.b.index()]));
+      const bool rigidPair = sideA.kind != BodyKind::Deformable && !breakable(patch.a) &&
+                             (!patch.b.valid() || (sideB.kind != BodyKind::Deformable && !breakable(patch.b)));
       if (mode == kAll && rigidPair && count > 4) mode = kReduced;
       pointMode_[j] = mode;
       keptCount_[j] = count;
@@ -905,8 +684,8 @@ void World::solveContacts() {
     const std::span<const Vec3> impulses = solver_.impulses();
     for (std::size_t i = 0; i < impulses.size(); ++i) {
       const auto [pa, pb] = pointParticles_[i];
-      if (rodForces_[particles_.body[pa.index()].index()]) loads_[pa.index()] -= impulses[i] / settings_.dt;
-      if (pb.valid() && rodForces_[particles_.body[pb.index()].index()]) loads_[pb.index()] += impulses[i] / settings_.dt;
+      if (breakable(particles_.body[pa.index()])) loads_[pa.index()] -= impulses[i] / settings_.dt;
+      if (pb.valid() && breakable(particles_.body[pb.index()])) loads_[pb.index()] += impulses[i] / settings_.dt;
     }
   }
   // velocities back to the bodies and particles

@@ -21,6 +21,7 @@
 #include "collision/narrow_phase.hpp"
 #include "collision/normal_cache.hpp"
 #include "collision/particle_contacts.hpp"
+#include "dynamics/bond_loads.hpp"
 #include "dynamics/breakage.hpp"
 #include "dynamics/deformable_integrator.hpp"
 #include "engine/builders/particle_cloud.hpp"
@@ -50,6 +51,14 @@ struct BodyDef {
   MassModel massModel = MassModel::Solid;  ///< Solid applies where the cloud has a solid (ParticleCloud::solid)
 };
 
+/// How a connector broke.
+enum class BreakMode : std::uint8_t {
+  Tension,      ///< a rod's tension above its strength, a bond's tensile stress above its tensile strength
+  Compression,  ///< a rod's compression above its compressive strength
+  Shear,        ///< a bond's shear stress above its shear strength
+  Strain,       ///< a spring's strain above its limit
+};
+
 /// A connector that broke.
 struct BreakEvent {
   std::int64_t step = 0;   ///< the step in which it broke (1 = the first)
@@ -57,7 +66,20 @@ struct BreakEvent {
   ParticleId a, b;
   BodyId body;             ///< the body it belonged to
   ConnectorKind kind = ConnectorKind::Rod;
-  double value = 0.0;      ///< rods: the force it carried [N]; springs: its strain [-]
+  /// rods: the force it carried [N]; springs: its strain [-]; bonds: the stress that broke it [Pa]
+  double value = 0.0;
+  BreakMode mode = BreakMode::Tension;
+  double energy = 0.0;     ///< bonds: the elastic energy it held [J] (0 for rods and springs)
+};
+
+/// How World::glue joins bodies into one.
+struct GlueDef {
+  std::string name;            ///< the glued body's name
+  ConnectorParams bonds;       ///< the glue's bonds (kind Bond)
+  /// Particles of different bodies whose centres are closer than reach x (r_a + r_b) are bonded [-]
+  double reach = 1.5;
+  /// If not empty, only these pairs of the bodies are glued to each other (indices into the bodies given)
+  std::vector<std::array<std::uint32_t, 2>> pairs;
 };
 
 /// Energies of the whole world [J].
@@ -75,6 +97,13 @@ class World {
   void addPlane(const Plane& plane);
   /// Creates a body from a builder's cloud. Fails on an empty cloud or a non-positive mass.
   Result<BodyId> addBody(const BodyDef& def, const ParticleCloud& cloud);
+
+  /// Glues rigid bodies whose connectors are bonds (or single particles) into one rigid body: the touching
+  /// particles of different bodies are joined by bonds of `def.bonds`. The bodies are retired (retired step:
+  /// the current step) and the glued body takes their particles, connectors and mass properties, and the
+  /// first body's material. Fails where a body is not rigid, has rods or springs, or touches none of the
+  /// others it is glued to.
+  Result<BodyId> glue(std::span<const BodyId> bodies, const GlueDef& def);
 
   /// Advances the world by settings().dt.
   StepStatus step();
@@ -146,6 +175,12 @@ class World {
   void integratePositions();
   void applyBreakage();
   void splitBody(BodyId parent, std::span<const std::uint32_t> component, std::size_t components);
+  /// Adds a connector; a bond gets its radius from its particles' and its strengths drawn (Weibull) from the
+  /// seed and its index.
+  ConnectorId addConnector(ParticleId a, ParticleId b, double rest, const ConnectorParams& params);
+  /// Makes the loads model of a rigid body from its unbroken connectors (rods or bonds), where any can break.
+  void buildLattice(BodyId id);
+  [[nodiscard]] bool breakable(BodyId id) const { return rodForces_[id.index()] || bondLoads_[id.index()]; }
   void recomputeNormalsAround(std::span<const ParticleId> seeds, int rings);
   /// Seeds the particles around deformable connectors that stretched or turned since their normals were
   /// last estimated.
@@ -200,10 +235,12 @@ class World {
   // breakage
   std::vector<std::vector<ConnectorId>> bodyConnectors_;    // [B]
   std::vector<std::unique_ptr<RodForces>> rodForces_;       // [B], for rigid bodies with breakable rods
+  std::vector<std::unique_ptr<BondLoads>> bondLoads_;       // [B], for rigid bodies with breakable bonds
   std::vector<BodyId> breakableRigid_;
   bool anyRollingResistance_ = false;  // (a material resists rolling)
   std::vector<Vec3> loads_;                                 // [P] loads on particles of breakable bodies [N]
   std::vector<double> rodForceScratch_;
+  std::vector<BondLoad> bondLoadScratch_;
   std::vector<double> deformableForces_;                    // [C] XPBD connector forces [N]
   std::vector<BreakEvent> breakEvents_;
   std::unique_ptr<ThreadPool> pool_;  // null with one thread

@@ -1,5 +1,7 @@
 #pragma once
 
+#include <cstdint>
+
 #include "collision/separating_plane.hpp"
 #include "dynamics/contact_solver.hpp"
 #include "engine/core/plane.hpp"
@@ -35,6 +37,9 @@ struct WorldSettings {
   /// particles' normals were last estimated, they are estimated again.
   double normalStrainThreshold = 0.05;
   double normalTurnThreshold = 0.035;
+  /// Seeds what is drawn at random when bodies are made (bond strengths with a Weibull modulus): the same
+  /// seed gives the same draws.
+  std::uint64_t seed = 0;
   /// Worker threads for the step (1 = none). The results do not depend on it: bit for bit the same.
   int threads = 1;
 };

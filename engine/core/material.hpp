@@ -21,6 +21,12 @@ struct Material {
   /// solids are about ten times stronger in compression than in tension).
   double rodCompressiveStrength = 0.0;
   double strainLimit = std::numeric_limits<double>::infinity();
+  // bonded bodies (connectors: bonds) and glue made of it
+  double youngsModulus = 0.0;  ///< [Pa]; 0 = not given (bonds need it)
+  double poissonRatio = 0.25;  ///< [-], in (-1, 0.5)
+  double tensileStrength = std::numeric_limits<double>::infinity();  ///< of a bond [Pa]
+  double shearStrength = std::numeric_limits<double>::infinity();    ///< of a bond [Pa]
+  double weibullModulus = 0.0;  ///< [-]; 0 = every bond as strong as given
 };
 
 }  // namespace volpar

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <numbers>
@@ -209,6 +210,77 @@ std::optional<std::string> latticeFitNote(const std::string& body, const Particl
          "size, fills it more closely); it collides at the particles' size and has the whole solid's mass and inertia";
 }
 
+/// A body's or a glue's bonds take what they do not set from their material; they need its Young's modulus.
+std::optional<Error> bondsFromMaterial(const SceneDesc& desc, const std::string& material, const SourceMark& mark,
+                                       const std::string& who, ConnectorParams& c) {
+  const Material& mat = desc.materials.at(material);
+  c.breakLimit = c.compressionLimit = std::numeric_limits<double>::infinity();
+  c.bond.youngsModulus = mat.youngsModulus;
+  c.bond.poissonRatio = mat.poissonRatio;
+  if (!std::isfinite(c.bond.tensileStrength)) c.bond.tensileStrength = mat.tensileStrength;
+  if (!std::isfinite(c.bond.shearStrength)) c.bond.shearStrength = mat.shearStrength;
+  if (!(c.bond.weibullModulus > 0.0)) c.bond.weibullModulus = mat.weibullModulus;
+  if (!(mat.youngsModulus > 0.0))
+    return at(desc, mark,
+              who + ": bonds need their material's Young's modulus; expected 'youngs_modulus' [Pa] in material '" + material + "'");
+  return std::nullopt;
+}
+
+/// Glues the bodies each glue names (World::glue).
+std::optional<Error> glueBodies(const SceneDesc& desc, BuiltScene& built) {
+  World& world = built.world;
+  // each name: a body entry's (all its copies) or one copy's
+  std::map<std::string, std::vector<BodyId>> byName;
+  for (std::size_t i = 0; i < built.bodySource.size(); ++i) {
+    const BodyId id(i);
+    byName[desc.bodies[built.bodySource[i]].name].push_back(id);
+    const std::string& own = world.bodies().info[i].name;
+    if (own != desc.bodies[built.bodySource[i]].name) byName[own].push_back(id);
+  }
+  std::vector<std::uint8_t> used(world.bodies().size(), 0);
+  for (const GlueDesc& g : desc.glue) {
+    std::vector<BodyId> parts;
+    std::map<std::size_t, std::uint32_t> slot;  // body index -> index in parts
+    auto take = [&](const std::string& name, const SourceMark& mark) -> std::optional<Error> {
+      const auto it = byName.find(name);
+      if (it == byName.end()) return at(desc, mark, "glue '" + g.name + "': no body named '" + name + "'");
+      for (const BodyId id : it->second) {
+        if (slot.contains(id.index())) continue;
+        if (used[id.index()])
+          return at(desc, mark, "glue '" + g.name + "': body '" + world.bodies().info[id.index()].name + "' is already glued by another glue");
+        slot[id.index()] = static_cast<std::uint32_t>(parts.size());
+        parts.push_back(id);
+      }
+      return std::nullopt;
+    };
+    GlueDef def;
+    def.name = g.name;
+    def.reach = g.reach;
+    def.bonds.kind = ConnectorKind::Bond;
+    def.bonds.bond.radiusFactor = g.radius;
+    if (auto bad = bondsFromMaterial(desc, g.material, g.mark, "glue '" + g.name + "'", def.bonds)) return bad;
+    for (std::size_t k = 0; k < g.bodies.size(); ++k)
+      if (auto bad = take(g.bodies[k], g.bodyMarks[k])) return bad;
+    for (std::size_t k = 0; k < g.pairs.size(); ++k) {
+      if (auto bad = take(g.pairs[k][0], g.pairMarks[k])) return bad;
+      if (auto bad = take(g.pairs[k][1], g.pairMarks[k])) return bad;
+      for (const BodyId a : byName.at(g.pairs[k][0]))
+        for (const BodyId b : byName.at(g.pairs[k][1])) def.pairs.push_back({slot.at(a.index()), slot.at(b.index())});
+    }
+    for (const BodyId id : parts) {
+      if (world.bodies().info[id.index()].kind != BodyKind::Rigid)
+        return at(desc, g.mark, "glue '" + g.name + "': body '" + world.bodies().info[id.index()].name +
+                                    "' is not rigid; only rigid bodies are glued");
+      used[id.index()] = 1;
+    }
+    auto glued = world.glue(parts, def);
+    if (!glued) return at(desc, g.mark, glued.error().message);
+    built.bodySource.push_back(built.bodySource[parts.front().index()]);
+    used.push_back(1);
+  }
+  return std::nullopt;
+}
+
 Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options) {
   // what the scene will need, before anything is allocated for it
   const auto estimate = estimateScene(desc);
@@ -229,6 +301,7 @@ Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options
   settings.solverIterations = desc.solverIterations;
   settings.substeps = desc.substeps;
   settings.rawNormals = desc.rawNormals;
+  settings.seed = desc.seed;
   BuiltScene built{World(settings), {}, {}, {}};
   World& world = built.world;
 
@@ -286,6 +359,9 @@ Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options
               def.connectors.compressionLimit =
                   mat.rodCompressiveStrength > 0.0 ? mat.rodCompressiveStrength : kCompressiveOverTensile * def.connectors.breakLimit;
           }
+          if (def.connectors.kind == ConnectorKind::Bond) {
+            if (auto bad = bondsFromMaterial(desc, b.material, b.mark, "body '" + b.name + "'", def.connectors)) return *bad;
+          }
           def.particleMass = b.particleMass;
           def.totalMass = b.mass;
           def.source = source;
@@ -295,6 +371,8 @@ Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options
           built.bodySource.push_back(d);
         }
   }
+
+  if (auto bad = glueBodies(desc, built)) return *bad;
 
   world.refreshContacts();
   if (desc.allowInitialOverlap) return built;

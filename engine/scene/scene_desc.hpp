@@ -93,6 +93,19 @@ struct BodyDesc {
   SourceMark mark;                          ///< the body's entry in the scene file
 };
 
+/// Bodies glued into one by bonds between their touching particles (World::glue).
+struct GlueDesc {
+  std::string name;                    ///< the glued body's name
+  std::vector<std::string> bodies;     ///< body names (an entry's name takes all its repeat copies)
+  std::vector<SourceMark> bodyMarks;
+  std::vector<std::array<std::string, 2>> pairs;  ///< if given, only these pairs are glued
+  std::vector<SourceMark> pairMarks;
+  std::string material = "default";    ///< the glue's material (its bonds' modulus and strengths)
+  double reach = 1.5;                  ///< particles closer than reach x (r_a + r_b) are bonded [-]
+  double radius = 1.0;                 ///< bond radius as a fraction of the smaller particle radius [-]
+  SourceMark mark;
+};
+
 struct PlaneDesc {
   Vec3 normal = Vec3::UnitZ();
   double offset = 0.0;  ///< [m]
@@ -117,6 +130,8 @@ struct SceneDesc {
   std::map<std::string, Material> materials;  ///< always holds "default"
   std::vector<PlaneDesc> planes;
   std::vector<BodyDesc> bodies;
+  std::vector<GlueDesc> glue;
+  std::uint64_t seed = 0;  ///< for what is drawn at random (bond strengths with a Weibull modulus)
 
   /// Number of steps the scene asks for: steps, or round(duration / dt).
   [[nodiscard]] std::int64_t stepCount() const;

@@ -369,7 +369,8 @@ Quat orientation(const Ctx& ctx, const YAML::Node& n) {
 Material material(const Ctx& ctx, const YAML::Node& n, const std::string& name) {
   const MapReader m(ctx, n, "material '" + name + "'",
                     {"density", "restitution", "friction", "rolling_resistance", "rod_strength",
-                     "rod_compressive_strength", "strain_limit"});
+                     "rod_compressive_strength", "strain_limit", "youngs_modulus", "poisson_ratio",
+                     "tensile_strength", "shear_strength", "weibull_modulus"});
   Material mat;
   mat.name = name;
   if (m.has("density")) mat.density = positive(ctx, m.get("density"), "density", "kg/m^3");
@@ -381,6 +382,16 @@ Material material(const Ctx& ctx, const YAML::Node& n, const std::string& name) 
   if (m.has("rod_compressive_strength"))
     mat.rodCompressiveStrength = positive(ctx, m.get("rod_compressive_strength"), "rod compressive strength", "N");
   if (m.has("strain_limit")) mat.strainLimit = positive(ctx, m.get("strain_limit"), "spring strain limit", "-");
+  if (m.has("youngs_modulus")) mat.youngsModulus = positive(ctx, m.get("youngs_modulus"), "Young's modulus", "Pa");
+  if (m.has("poisson_ratio")) {
+    const YAML::Node v = m.get("poisson_ratio");
+    mat.poissonRatio = number(ctx, v, "Poisson's ratio");
+    if (!(mat.poissonRatio > -1.0 && mat.poissonRatio < 0.5))
+      ctx.fail(v.Mark(), "expected a Poisson's ratio in (-1, 0.5), got " + v.Scalar());
+  }
+  if (m.has("tensile_strength")) mat.tensileStrength = positive(ctx, m.get("tensile_strength"), "tensile strength", "Pa");
+  if (m.has("shear_strength")) mat.shearStrength = positive(ctx, m.get("shear_strength"), "shear strength", "Pa");
+  if (m.has("weibull_modulus")) mat.weibullModulus = positive(ctx, m.get("weibull_modulus"), "Weibull modulus", "-");
   return mat;
 }
 
@@ -499,14 +510,43 @@ FillSettings fill(const Ctx& ctx, const YAML::Node& n) {
   return f;
 }
 
+/// `bonds` of a body or a glue: strengths left out come from the material (scene_build.cpp).
+void bondKeys(const Ctx& ctx, const MapReader& m, BondParams& b) {
+  if (m.has("tensile_strength")) b.tensileStrength = positive(ctx, m.get("tensile_strength"), "tensile strength", "Pa");
+  if (m.has("shear_strength")) b.shearStrength = positive(ctx, m.get("shear_strength"), "shear strength", "Pa");
+  if (m.has("weibull_modulus")) b.weibullModulus = positive(ctx, m.get("weibull_modulus"), "Weibull modulus", "-");
+  if (m.has("radius")) {
+    const YAML::Node r = m.get("radius");
+    b.radiusFactor = number(ctx, r, "bond radius");
+    if (!(b.radiusFactor > 0.0 && b.radiusFactor <= 1.0))
+      ctx.fail(r.Mark(), "expected a bond radius in (0, 1] (a fraction of the smaller particle radius), got " + r.Scalar());
+  }
+}
+
 ConnectorParams connectors(const Ctx& ctx, const YAML::Node& n, BodyKind kind) {
   ConnectorParams c;
+  auto bondsOnly = [&](const YAML::Node& where) {
+    if (kind == BodyKind::Deformable)
+      ctx.fail(where.Mark(), "bonds join the particles of rigid bodies; a deformable body takes springs or rods");
+    c.kind = ConnectorKind::Bond;
+  };
   if (n.IsScalar()) {
-    oneOf(ctx, n, "connector kind", {"rigid", "rods"});
+    if (oneOf(ctx, n, "connector kind", {"rigid", "rods", "bonds"}) == "bonds") bondsOnly(n);
     return c;
   }
-  const MapReader m(ctx, n, "connectors", {"rods", "springs"});
-  if (m.size() != 1) ctx.fail(m.mark(), "expected exactly one of 'rods' or 'springs' in connectors");
+  const MapReader m(ctx, n, "connectors", {"rods", "springs", "bonds"});
+  if (m.size() != 1) ctx.fail(m.mark(), "expected exactly one of 'rods', 'bonds' or 'springs' in connectors");
+  if (m.has("bonds")) {
+    const YAML::Node r = m.get("bonds");
+    bondsOnly(r);
+    if (r.IsNull() || (r.IsMap() && r.size() == 0)) return c;
+    const MapReader bm(ctx, r, "bonds", {"tensile_strength", "shear_strength", "weibull_modulus", "radius"});
+    for (const char* key : {"tensile_strength", "shear_strength"})
+      if (bm.has(key) && kind == BodyKind::Static)
+        ctx.fail(bm.keyMark(key), "static bodies never break; give the bonds a strength on a rigid body");
+    bondKeys(ctx, bm, c.bond);
+    return c;
+  }
   if (m.has("rods")) {
     const YAML::Node r = m.get("rods");
     if (r.IsNull() || (r.IsMap() && r.size() == 0)) return c;
@@ -618,10 +658,53 @@ BodyDesc body(const Ctx& ctx, const YAML::Node& n, std::size_t index, const std:
   return b;
 }
 
+GlueDesc glue(const Ctx& ctx, const YAML::Node& n, std::size_t index) {
+  const MapReader m(ctx, n, "glue", {"name", "bodies", "pairs", "material", "reach", "radius"});
+  GlueDesc g;
+  g.mark = {n.Mark().line + 1, n.Mark().column + 1};
+  g.name = m.has("name") ? text(ctx, m.get("name"), "glue name") : "glued" + std::to_string(index);
+  if (m.has("bodies") == m.has("pairs")) ctx.fail(m.mark(), "expected exactly one of 'bodies' (all their touching pairs) or 'pairs' in glue");
+  auto name = [&](const YAML::Node& v, std::vector<std::string>& into, std::vector<SourceMark>& marks) {
+    into.push_back(text(ctx, v, "body name"));
+    marks.push_back({v.Mark().line + 1, v.Mark().column + 1});
+  };
+  if (m.has("bodies")) {
+    const YAML::Node list = m.get("bodies");
+    if (!list.IsSequence() || list.size() == 0) ctx.fail(list.Mark(), "expected a list of body names to glue, got " + describe(list));
+    for (const auto& v : list) name(v, g.bodies, g.bodyMarks);
+  } else {
+    const YAML::Node list = m.get("pairs");
+    if (!list.IsSequence() || list.size() == 0) ctx.fail(list.Mark(), "expected a list of body name pairs [[a, b], ...], got " + describe(list));
+    for (const auto& pair : list) {
+      if (!pair.IsSequence() || pair.size() != 2) ctx.fail(pair.Mark(), "expected a pair of body names [a, b], got " + describe(pair));
+      std::vector<std::string> two;
+      std::vector<SourceMark> marks;
+      name(pair[0], two, marks);
+      name(pair[1], two, marks);
+      g.pairs.push_back({two[0], two[1]});
+      g.pairMarks.push_back(marks[0]);
+    }
+  }
+  if (m.has("material")) g.material = text(ctx, m.get("material"), "material");
+  if (m.has("reach")) {
+    const YAML::Node r = m.get("reach");
+    g.reach = number(ctx, r, "reach");
+    if (!(g.reach > 1.0 && g.reach <= 4.0))
+      ctx.fail(r.Mark(), "expected reach in (1, 4] times the two particles' radii summed (touching particles sit at 1), got " + r.Scalar());
+  }
+  if (m.has("radius")) {
+    const YAML::Node r = m.get("radius");
+    g.radius = number(ctx, r, "bond radius");
+    if (!(g.radius > 0.0 && g.radius <= 1.0))
+      ctx.fail(r.Mark(), "expected a bond radius in (0, 1] (a fraction of the smaller particle radius), got " + r.Scalar());
+  }
+  return g;
+}
+
 SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::path& sceneDir) {
   const MapReader m(ctx, root, "scene",
                     {"name", "dt", "steps", "duration", "gravity", "solver", "output", "materials", "planes",
-                     "bodies", "allow_initial_overlap", "normals"});
+                     "bodies", "allow_initial_overlap", "normals", "glue", "seed"});
   SceneDesc s;
   s.materials["default"] = Material{"default"};
   if (m.has("name")) s.name = text(ctx, m.get("name"), "scene name");
@@ -648,10 +731,11 @@ SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::p
     if (om.has("every")) s.outputEvery = static_cast<int>(integer(ctx, om.get("every"), "output every", 1, 1000000000));
   }
   if (m.has("normals")) s.normals = surfaceNormals(ctx, m.get("normals"));
+  if (m.has("seed")) s.seed = static_cast<std::uint64_t>(integer(ctx, m.get("seed"), "seed", 0, 9007199254740992));
   if (m.has("allow_initial_overlap")) s.allowInitialOverlap = boolean(ctx, m.get("allow_initial_overlap"), "allow_initial_overlap");
   if (m.has("materials")) {
     const YAML::Node mats = m.get("materials");
-    if (!mats.IsMap()) ctx.fail(mats.Mark(), "expected a map of materials {name: {density, restitution, friction, rolling_resistance, rod_strength, rod_compressive_strength, strain_limit}}");
+    if (!mats.IsMap()) ctx.fail(mats.Mark(), "expected a map of materials {name: {density, restitution, friction, rolling_resistance, rod_strength, rod_compressive_strength, strain_limit, youngs_modulus, poisson_ratio, tensile_strength, shear_strength, weibull_modulus}}");
     std::set<std::string> seen;
     for (auto it = mats.begin(); it != mats.end(); ++it) {
       const std::string name = text(ctx, it->first, "material name");
@@ -681,6 +765,16 @@ SceneDesc scene(const Ctx& ctx, const YAML::Node& root, const std::filesystem::p
     if (bodies[i]["material"]) checkMaterial(s.bodies.back().material, bodies[i]["material"]);
     if (!names.insert(s.bodies.back().name).second)
       ctx.fail(bodies[i].Mark(), "duplicate body name '" + s.bodies.back().name + "'");
+  }
+  if (m.has("glue")) {
+    const YAML::Node list = m.get("glue");
+    if (!list.IsSequence() || list.size() == 0) ctx.fail(list.Mark(), "expected a list of glues [{bodies: [...], material: ...}]");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      s.glue.push_back(glue(ctx, list[i], i));
+      if (list[i]["material"]) checkMaterial(s.glue.back().material, list[i]["material"]);
+      if (!names.insert(s.glue.back().name).second)
+        ctx.fail(list[i].Mark(), "duplicate body name '" + s.glue.back().name + "' (a glue names the body it makes)");
+    }
   }
   return s;
 }

@@ -1,0 +1,169 @@
+#include "dynamics/bond_loads.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace volpar {
+
+namespace {
+
+using Mat8x12 = Eigen::Matrix<double, 8, 12>;
+using Vec8 = Eigen::Matrix<double, 8, 1>;
+using Vec12 = Eigen::Matrix<double, 12, 1>;
+
+Mat3 cross(const Vec3& v) {
+  Mat3 m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
+/// The beam's deformations from its ends' displacements and rotations (u_a, theta_a, u_b, theta_b):
+/// stretch, twist, and the two ends' rotations across the bond relative to its chord.
+Mat8x12 strainMap(const Vec3& e, double length) {
+  Mat8x12 b = Mat8x12::Zero();
+  const Mat3 p = Mat3::Identity() - e * e.transpose();
+  const Mat3 chord = cross(e) / length;  // the chord's rotation per unit of (u_b - u_a)
+  b.block<1, 3>(0, 0) = -e.transpose();
+  b.block<1, 3>(0, 6) = e.transpose();
+  b.block<1, 3>(1, 3) = -e.transpose();
+  b.block<1, 3>(1, 9) = e.transpose();
+  b.block<3, 3>(2, 0) = chord;
+  b.block<3, 3>(2, 3) = p;
+  b.block<3, 3>(2, 6) = -chord;
+  b.block<3, 3>(5, 0) = chord;
+  b.block<3, 3>(5, 6) = -chord;
+  b.block<3, 3>(5, 9) = p;
+  return b;
+}
+
+}  // namespace
+
+BondStress bondStress(const BondLoad& load, double radius) {
+  const double area = std::numbers::pi * radius * radius;
+  const double inertia = 0.25 * area * radius * radius;  // I = pi R^4 / 4, J = 2 I
+  const double bendingStress = load.bending * radius / inertia;
+  const double normal = std::abs(load.axial) / area + bendingStress;
+  const double shear = load.shear / area + load.torsion * radius / (2.0 * inertia);
+  return {load.axial / area + bendingStress, std::sqrt(0.25 * normal * normal + shear * shear)};
+}
+
+BondFailure bondFailure(const BondStress& stress, double tensileStrength, double shearStrength) {
+  if (stress.tensile > tensileStrength) return BondFailure::Tension;
+  if (stress.shear > shearStrength) return BondFailure::Shear;
+  return BondFailure::None;
+}
+
+bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const ConnectorStore& c,
+                      std::span<const ConnectorId> bonds) {
+  bonds_.assign(bonds.begin(), bonds.end());
+  beams_.clear();
+  if (bonds_.empty()) return false;
+  const std::size_t n = body.particles.size();
+  std::size_t maxId = 0;
+  for (const ParticleId q : body.particles) maxId = std::max(maxId, q.index());
+  local_.assign(maxId + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) local_[body.particles[i].index()] = static_cast<std::uint32_t>(i);
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(bonds_.size() * 144 + 6 * n);
+  Eigen::VectorXd diag = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(6 * n));
+  for (const ConnectorId id : bonds_) {
+    const std::size_t k = id.index();
+    Beam beam;
+    beam.a = local_[c.a[k].index()];
+    beam.b = local_[c.b[k].index()];
+    const Vec3 d = p.local[c.b[k].index()] - p.local[c.a[k].index()];
+    beam.length = d.norm();
+    beam.e = d / beam.length;
+    const double r = c.bondRadius[k], e = c.youngsModulus[k];
+    const double area = std::numbers::pi * r * r, inertia = 0.25 * area * r * r;
+    const double shearModulus = e / (2.0 * (1.0 + c.poissonRatio[k]));
+    beam.axial = e * area / beam.length;
+    beam.torsion = shearModulus * 2.0 * inertia / beam.length;
+    beam.bending = e * inertia / beam.length;
+    beams_.push_back(beam);
+    // K_e = B^T D B, D = diag(EA/L, GJ/L, (EI/L) [4 2; 2 4] (x) I3)
+    const Mat8x12 b = strainMap(beam.e, beam.length);
+    Eigen::Matrix<double, 8, 8> dm = Eigen::Matrix<double, 8, 8>::Zero();
+    dm(0, 0) = beam.axial;
+    dm(1, 1) = beam.torsion;
+    dm.block<3, 3>(2, 2) = 4.0 * beam.bending * Mat3::Identity();
+    dm.block<3, 3>(5, 5) = 4.0 * beam.bending * Mat3::Identity();
+    dm.block<3, 3>(2, 5) = 2.0 * beam.bending * Mat3::Identity();
+    dm.block<3, 3>(5, 2) = 2.0 * beam.bending * Mat3::Identity();
+    const Eigen::Matrix<double, 12, 12> ke = b.transpose() * dm * b;
+    const std::uint32_t node[2] = {beam.a, beam.b};
+    for (int bi = 0; bi < 2; ++bi)
+      for (int bj = 0; bj < 2; ++bj)
+        for (int i = 0; i < 6; ++i)
+          for (int j = 0; j < 6; ++j) {
+            const double v = ke(6 * bi + i, 6 * bj + j);
+            if (v == 0.0) continue;
+            t.emplace_back(static_cast<int>(6 * node[bi]) + i, static_cast<int>(6 * node[bj]) + j, v);
+          }
+    for (int bi = 0; bi < 2; ++bi)
+      for (int i = 0; i < 6; ++i) diag[6 * node[bi] + i] += ke(6 * bi + i, 6 * bi + i);
+  }
+  // the six rigid-body modes make K singular; a tiny regularisation (per kind of freedom, which differ in
+  // units) picks the solution without rigid motion and leaves a self-equilibrated load's deformations as they are
+  double maxMove = 0.0, maxTurn = 0.0;
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      maxMove = std::max(maxMove, diag[static_cast<Eigen::Index>(6 * i) + k]);
+      maxTurn = std::max(maxTurn, diag[static_cast<Eigen::Index>(6 * i) + 3 + k]);
+    }
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 6; ++k)
+      t.emplace_back(static_cast<int>(6 * i) + k, static_cast<int>(6 * i) + k, 1e-9 * (k < 3 ? maxMove : maxTurn));
+  Eigen::SparseMatrix<double> km(static_cast<Eigen::Index>(6 * n), static_cast<Eigen::Index>(6 * n));
+  km.setFromTriplets(t.begin(), t.end());
+  ldlt_.compute(km);
+  f_.resize(static_cast<Eigen::Index>(6 * n));
+  return ldlt_.info() == Eigen::Success;
+}
+
+void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleStore& p, std::span<const Vec3> loads,
+                      std::vector<BondLoad>& out) {
+  const std::size_t n = body.particles.size();
+  const Mat3 r = s.orientation.toRotationMatrix();
+  // the rigid motion the loads cause: a = F / M, alpha = I^-1 (tau - w x I w)
+  Vec3 force = Vec3::Zero(), torque = Vec3::Zero();
+  for (const ParticleId q : body.particles) {
+    force += loads[q.index()];
+    torque += (p.position[q.index()] - s.position).cross(loads[q.index()]);
+  }
+  const Vec3 a = force * s.invMass;
+  const Mat3 inertiaWorld = r * body.inertiaLocal.asDiagonal() * r.transpose();
+  const Vec3 alpha = s.invInertiaWorld * (torque - s.angularVelocity.cross(inertiaWorld * s.angularVelocity));
+  const Vec3 alphaLocal = r.transpose() * alpha;
+  const Vec3 residualMoment = body.inertiaResidual * alphaLocal;  // shared by mass
+  // self-equilibrated loads in the body frame: forces on the particles less their d'Alembert forces, and
+  // the d'Alembert moments of what each particle adds to the body's inertia beyond its point mass
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t q = body.particles[i].index();
+    const Vec3 arm = p.position[q] - s.position;
+    const Vec3 inertial = p.mass[q] * (a + alpha.cross(arm) + s.angularVelocity.cross(s.angularVelocity.cross(arm)));
+    f_.segment<3>(static_cast<Eigen::Index>(6 * i)) = r.transpose() * (loads[q] - inertial);
+    f_.segment<3>(static_cast<Eigen::Index>(6 * i + 3)) =
+        -(p.ownInertia[q] * alphaLocal + (p.mass[q] / body.mass) * residualMoment);
+  }
+  u_ = ldlt_.solve(f_);
+  out.resize(beams_.size());
+  for (std::size_t k = 0; k < beams_.size(); ++k) {
+    const Beam& beam = beams_[k];
+    Vec12 d;
+    d.segment<6>(0) = u_.segment<6>(static_cast<Eigen::Index>(6 * beam.a));
+    d.segment<6>(6) = u_.segment<6>(static_cast<Eigen::Index>(6 * beam.b));
+    const Vec8 strain = strainMap(beam.e, beam.length) * d;
+    const Vec3 psiA = strain.segment<3>(2), psiB = strain.segment<3>(5);
+    const Vec3 ma = beam.bending * (4.0 * psiA + 2.0 * psiB), mb = beam.bending * (2.0 * psiA + 4.0 * psiB);
+    BondLoad& l = out[k];
+    l.axial = beam.axial * strain[0];
+    l.torsion = std::abs(beam.torsion * strain[1]);
+    l.bending = std::max(ma.norm(), mb.norm());
+    l.shear = (ma + mb).norm() / beam.length;
+    l.energy = 0.5 * (beam.axial * strain[0] * strain[0] + beam.torsion * strain[1] * strain[1] + psiA.dot(ma) + psiB.dot(mb));
+  }
+}
+
+}  // namespace volpar

@@ -1,0 +1,487 @@
+// The World's breakage stage (DESIGN section 6): connectors that break under the step's loads, rigid bodies
+// that split into the connected pieces of what is left, glued bodies, and the normals around what changed.
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+#include <string>
+#include <unordered_map>
+
+#include "dynamics/mass_properties.hpp"
+#include "dynamics/rigid_integrator.hpp"
+#include "engine/world.hpp"
+
+namespace volpar {
+
+namespace {
+
+/// A uniform number in (0, 1) from `seed` and `index` (SplitMix64 of both).
+double uniformDraw(std::uint64_t seed, std::uint64_t index) {
+  std::uint64_t z = seed * 0x9e3779b97f4a7c15ull + (index + 1) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  z ^= z >> 31;
+  return (static_cast<double>(z >> 11) + 0.5) * 0x1.0p-53;
+}
+
+}  // namespace
+
+ConnectorId World::addConnector(ParticleId a, ParticleId b, double rest, const ConnectorParams& params) {
+  double radius = 0.0, factor = 1.0;
+  if (params.kind == ConnectorKind::Bond) {
+    radius = params.bond.radiusFactor * std::min(particles_.radius[a.index()], particles_.radius[b.index()]);
+    // Weibull: P(strength < s) = 1 - exp(-(s / s0)^m), drawn by inverting it at a uniform U
+    if (params.bond.weibullModulus > 0.0)
+      factor = std::pow(-std::log(uniformDraw(settings_.seed, connectors_.size())), 1.0 / params.bond.weibullModulus);
+  }
+  return connectors_.add(a, b, rest, params, radius, factor);
+}
+
+void World::buildLattice(BodyId id) {
+  rodForces_[id.index()].reset();
+  bondLoads_[id.index()].reset();
+  std::vector<ConnectorId> intact;
+  bool bonds = false, canBreak = false;
+  for (const ConnectorId c : bodyConnectors_[id.index()]) {
+    const std::size_t k = c.index();
+    if (connectors_.broken[k]) continue;
+    intact.push_back(c);
+    bonds = bonds || connectors_.kind[k] == ConnectorKind::Bond;
+    canBreak = canBreak || std::isfinite(connectors_.breakLimit[k]) || std::isfinite(connectors_.compressionLimit[k]) ||
+               std::isfinite(connectors_.tensileStrength[k]) || std::isfinite(connectors_.shearStrength[k]);
+  }
+  if (!canBreak || intact.empty()) return;  // (applyBreakage drops it from breakableRigid_)
+  const bool listed = std::find(breakableRigid_.begin(), breakableRigid_.end(), id) != breakableRigid_.end();
+  if (bonds) {
+    bondLoads_[id.index()] = std::make_unique<BondLoads>();
+    bondLoads_[id.index()]->build(bodies_.info[id.index()], particles_, connectors_, intact);
+  } else {
+    rodForces_[id.index()] = std::make_unique<RodForces>();
+    rodForces_[id.index()]->build(bodies_.info[id.index()], particles_, connectors_, intact);
+  }
+  bodies_.info[id.index()].breakable = true;
+  if (!listed) breakableRigid_.push_back(id);
+}
+
+void World::applyBreakage() {
+  breakEvents_.clear();
+  seeds_.clear();
+  bool anyBroken = false;
+  // rigid bodies: the connectors' loads in the elastic lattice (rods) or frame (bonds) under this step's loads
+  // (fragments made below join the list and are judged under the same loads in this step)
+  for (std::size_t k = 0; k < breakableRigid_.size(); ++k) {
+    const BodyId id = breakableRigid_[k];
+    if (!bodies_.info[id.index()].alive) continue;
+    bool broke = false;
+    const auto record = [&](ConnectorId cid, double value, BreakMode mode, double energy) {
+      const std::size_t c = cid.index();
+      connectors_.broken[c] = 1;
+      opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
+      breakEvents_.push_back({stepIndex_ + 1, cid, connectors_.a[c], connectors_.b[c], id, connectors_.kind[c], value, mode, energy});
+      seeds_.push_back(connectors_.a[c]);
+      seeds_.push_back(connectors_.b[c]);
+      broke = true;
+    };
+    if (BondLoads* bl = bondLoads_[id.index()].get()) {
+      bl->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, bondLoadScratch_);
+      const std::span<const ConnectorId> bonds = bl->bonds();
+      for (std::size_t r = 0; r < bonds.size(); ++r) {
+        const std::size_t c = bonds[r].index();
+        const BondStress stress = bondStress(bondLoadScratch_[r], connectors_.bondRadius[c]);
+        const BondFailure failure = bondFailure(stress, connectors_.tensileStrength[c], connectors_.shearStrength[c]);
+        if (failure == BondFailure::Tension) record(bonds[r], stress.tensile, BreakMode::Tension, bondLoadScratch_[r].energy);
+        else if (failure == BondFailure::Shear) record(bonds[r], stress.shear, BreakMode::Shear, bondLoadScratch_[r].energy);
+      }
+    } else if (RodForces* rf = rodForces_[id.index()].get()) {
+      rf->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, rodForceScratch_);
+      const std::span<const ConnectorId> rods = rf->rods();
+      for (std::size_t r = 0; r < rods.size(); ++r) {
+        const std::size_t c = rods[r].index();
+        // (tension above the tensile strength, or compression above the compressive strength)
+        if (rodForceScratch_[r] > connectors_.breakLimit[c]) record(rods[r], rodForceScratch_[r], BreakMode::Tension, 0.0);
+        else if (-rodForceScratch_[r] > connectors_.compressionLimit[c])
+          record(rods[r], rodForceScratch_[r], BreakMode::Compression, 0.0);
+      }
+    }
+    if (!broke) continue;
+    anyBroken = true;
+    std::vector<std::uint32_t> component;
+    const std::size_t parts =
+        connectedComponents(bodies_.info[id.index()].particles, connectors_, bodyConnectors_[id.index()], component);
+    if (parts > 1) splitBody(id, component, parts);
+    else buildLattice(id);
+  }
+  // deformable bodies: springs past their strain limit, rods past their strength
+  for (const ConnectorId cid : deformableConnectors_) {
+    const std::size_t c = cid.index();
+    if (connectors_.broken[c] || (!std::isfinite(connectors_.breakLimit[c]) && !std::isfinite(connectors_.compressionLimit[c])))
+      continue;
+    double value;
+    bool breaks;
+    if (connectors_.kind[c] == ConnectorKind::Spring) {
+      const double len = (particles_.position[connectors_.b[c].index()] - particles_.position[connectors_.a[c].index()]).norm();
+      value = std::abs(len / connectors_.restLength[c] - 1.0);
+      breaks = value > connectors_.breakLimit[c];
+    } else {
+      value = deformableForces_[c];  // (tension positive)
+      breaks = value > connectors_.breakLimit[c] || -value > connectors_.compressionLimit[c];
+    }
+    if (!breaks) continue;
+    connectors_.broken[c] = 1;
+    opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
+    anyBroken = true;
+    breakEvents_.push_back({stepIndex_ + 1, cid, connectors_.a[c], connectors_.b[c], particles_.body[connectors_.a[c].index()],
+                            connectors_.kind[c], value,
+                            connectors_.kind[c] == ConnectorKind::Spring ? BreakMode::Strain
+                            : value > 0.0                               ? BreakMode::Tension
+                                                                        : BreakMode::Compression,
+                            0.0});
+    seeds_.push_back(connectors_.a[c]);
+    seeds_.push_back(connectors_.b[c]);
+  }
+  // bodies that can no longer break (retired, or with nothing breakable left) leave the list
+  if (anyBroken)
+    breakableRigid_.erase(std::remove_if(breakableRigid_.begin(), breakableRigid_.end(),
+                                         [&](BodyId id) { return !bodies_.info[id.index()].alive || !breakable(id); }),
+                          breakableRigid_.end());
+  stats_.connectorsBroken = breakEvents_.size();
+  if (anyBroken) contactFinder_.refreshAdjacency(particles_, connectors_);
+  // the faces a break opened: the particles within two connectors of it (their neighbourhoods changed)
+  if (!seeds_.empty()) recomputeNormalsAround(seeds_, 2);
+  // deformable regions that bent or stretched
+  seedDeformedNormals();
+}
+
+void World::seedDeformedNormals() {
+  seeds_.clear();
+  const double cosTurn = std::cos(settings_.normalTurnThreshold);
+  for (const ConnectorId cid : deformableConnectors_) {
+    const std::size_t c = cid.index();
+    if (connectors_.broken[c]) continue;
+    const ParticleId a = connectors_.a[c], b = connectors_.b[c];
+    const Vec3 d = particles_.position[b.index()] - particles_.position[a.index()];
+    const double len = d.norm();
+    if (!(len > 0.0)) continue;
+    const Vec3 local = bodies_.state[particles_.body[a.index()].index()].orientation.conjugate() * (d / len);
+    const bool stretched = std::abs(len / connectors_.restLength[c] - 1.0) > settings_.normalStrainThreshold;
+    if (!stretched && local.dot(connectorDirection_[c]) >= cosTurn) continue;
+    connectorDirection_[c] = local;
+    seeds_.push_back(a);
+    seeds_.push_back(b);
+  }
+  if (!seeds_.empty()) recomputeNormalsAround(seeds_, 1);
+}
+
+void World::recomputeNormalsAround(std::span<const ParticleId> seeds, int rings) {
+  // the seeds and their neighbours within `rings` connectors, each once
+  ringMark_.resize(particles_.size(), 0);
+  if (++ringStamp_ == 0) {
+    std::fill(ringMark_.begin(), ringMark_.end(), 0u);
+    ringStamp_ = 1;
+  }
+  ringScratch_.clear();
+  for (const ParticleId s : seeds)
+    if (ringMark_[s.index()] != ringStamp_) {
+      ringMark_[s.index()] = ringStamp_;
+      ringScratch_.push_back(s);
+    }
+  std::size_t frontierBegin = 0;
+  for (int r = 0; r < rings; ++r) {
+    const std::size_t frontierEnd = ringScratch_.size();
+    for (std::size_t i = frontierBegin; i < frontierEnd; ++i)
+      for (const ParticleId n : contactFinder_.neighbours(ringScratch_[i]))
+        if (ringMark_[n.index()] != ringStamp_) {
+          ringMark_[n.index()] = ringStamp_;
+          ringScratch_.push_back(n);
+        }
+    frontierBegin = frontierEnd;
+  }
+  std::sort(ringScratch_.begin(), ringScratch_.end());
+  recomputeNormals(ringScratch_);
+}
+
+void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component, std::size_t components) {
+  const BodyInfo parentInfo = bodies_.info[parentId.index()];  // copy: the store grows below
+  const BodyState parentState = bodies_.state[parentId.index()];
+  const Quat shapeOrientation = bodies_.shapeOrientation(parentId);
+  const Vec3 shapeOrigin = bodies_.shapeOrigin(parentId);
+  const std::vector<ConnectorId> parentConnectors = bodyConnectors_[parentId.index()];
+  for (std::size_t part = 0; part < components; ++part) {
+    std::vector<ParticleId> ids;
+    for (std::size_t i = 0; i < parentInfo.particles.size(); ++i)
+      if (component[i] == part) ids.push_back(parentInfo.particles[i]);
+    std::vector<Vec3> x;
+    std::vector<double> m, own;
+    for (const ParticleId q : ids) {
+      x.push_back(particles_.position[q.index()]);
+      m.push_back(particles_.mass[q.index()]);
+      own.push_back(particles_.ownInertia[q.index()]);
+    }
+    // mass properties from the fragment's own particles, in the world, plus its share (by mass) of what its
+    // parent's inertia added to its particles': the fragments' inertias about the parent's centre sum to the
+    // parent's, so the split keeps angular momentum
+    MassProperties mp = computeMassProperties(x, m, own);
+    const Mat3 parentAxes = parentState.orientation.toRotationMatrix();
+    const Mat3 share = (mp.mass / parentInfo.mass) * parentAxes * parentInfo.inertiaResidual * parentAxes.transpose();
+    mp.inertia += share;
+    const PrincipalAxes axes = principalAxes(mp.inertia);
+    const BodyId id(bodies_.size());
+    BodyInfo info;
+    // "wall/17": the original body's name and the fragment's own body index
+    info.name = parentInfo.name.substr(0, parentInfo.name.find('/')) + "/" + std::to_string(id.value);
+    info.kind = BodyKind::Rigid;
+    info.material = parentInfo.material;
+    info.mass = mp.mass;
+    info.inertiaLocal = axes.moments;
+    // the fragment keeps its parent's shape frame
+    info.principalInShape = (shapeOrientation.conjugate() * axes.rotation).normalized();
+    info.comInShape = shapeOrientation.conjugate() * (mp.centre - shapeOrigin);
+    {
+      const Mat3 r = axes.rotation.toRotationMatrix();
+      info.inertiaResidual = r.transpose() * share * r;
+    }
+    info.particles = ids;
+    info.createdStep = stepIndex_ + 1;
+    info.parent = parentId;
+    BodyState state;
+    state.position = mp.centre;
+    state.orientation = axes.rotation;
+    // velocity inherited from the parent's rigid motion: v + w x r
+    state.linearVelocity = parentState.linearVelocity + parentState.angularVelocity.cross(mp.centre - parentState.position);
+    state.angularVelocity = parentState.angularVelocity;
+    state.invMass = 1.0 / mp.mass;
+    state.invInertiaLocal = axes.moments.cwiseInverse();
+    updateWorldInertia(state);
+    const Quat toLocal = axes.rotation.conjugate();
+    for (const ParticleId q : ids) {
+      const std::size_t i = q.index();
+      particles_.body[i] = id;
+      particles_.local[i] = toLocal * (particles_.position[i] - mp.centre);
+      const std::int32_t k = particles_.normalIndex[i];
+      if (k >= 0) {
+        // the cached normal (and its faces) from the parent's frame to the fragment's, in place
+        std::array<Vec3, 3> faces{};
+        const std::span<const Vec3> old = normals_.faces(k);
+        for (std::size_t f = 0; f < old.size(); ++f) faces[f] = toLocal * (parentState.orientation * old[f]);
+        normals_.set(k, toLocal * (parentState.orientation * normals_[k]), std::span<const Vec3>(faces.data(), old.size()));
+      }
+    }
+    bodies_.add(state, std::move(info));
+    bodyBoxes_.emplace_back();
+    rodForces_.emplace_back();
+    bondLoads_.emplace_back();
+    bodyConnectors_.emplace_back();
+    std::vector<std::uint8_t> inPart(particles_.size(), 0);
+    for (const ParticleId q : ids) inPart[q.index()] = 1;
+    for (const ConnectorId c : parentConnectors)
+      if (inPart[connectors_.a[c.index()].index()] && inPart[connectors_.b[c.index()].index()]) bodyConnectors_.back().push_back(c);
+    rigidBodies_.push_back(id);
+    updateRigidParticles(id);
+    broadphase_.addBody(id, bodyBoxes_[id.index()], false);
+    contactFinder_.addBody(id, particles_, bodies_);
+    buildLattice(id);
+    bodies_.info[id.index()].breakable = true;  // (a fragment, whether or not it can break further)
+    ++stats_.bodiesCreated;
+  }
+  // the parent is retired: it keeps its id and history but no particles
+  BodyInfo& retired = bodies_.info[parentId.index()];
+  retired.alive = false;
+  retired.retiredStep = stepIndex_ + 1;
+  retired.particles.clear();
+  bodies_.state[parentId.index()].invMass = 0.0;
+  broadphase_.removeBody(parentId);
+  rodForces_[parentId.index()].reset();
+  bondLoads_[parentId.index()].reset();
+  rigidBodies_.erase(std::find(rigidBodies_.begin(), rigidBodies_.end(), parentId));
+  contactsStale_ = true;
+}
+
+Result<BodyId> World::glue(std::span<const BodyId> parts, const GlueDef& def) {
+  auto fail = [&](const std::string& why) -> Result<BodyId> { return Error{"", 0, 0, "glue '" + def.name + "': " + why}; };
+  if (parts.size() < 2) return fail("expected at least two bodies to glue");
+  if (def.bonds.kind != ConnectorKind::Bond || !(def.bonds.bond.youngsModulus > 0.0))
+    return fail("the glue's bonds need a positive Young's modulus");
+  if (!(def.reach > 1.0 && def.reach <= 4.0)) return fail("expected a reach in (1, 4]");
+  std::vector<std::uint32_t> partOf(particles_.size(), 0xffffffffu);
+  for (std::uint32_t k = 0; k < parts.size(); ++k) {
+    const BodyId id = parts[k];
+    if (!id.valid() || id.index() >= bodies_.size()) return fail("unknown body");
+    const BodyInfo& info = bodies_.info[id.index()];
+    if (!info.alive || info.kind != BodyKind::Rigid)
+      return fail("body '" + info.name + "' is " + (info.alive ? "not rigid" : "retired") + "; only rigid bodies are glued");
+    for (const ConnectorId c : bodyConnectors_[id.index()])
+      if (connectors_.kind[c.index()] != ConnectorKind::Bond)
+        return fail("body '" + info.name + "' is joined by rods; glued bodies are joined by bonds (connectors: bonds)");
+    for (const ParticleId q : info.particles) {
+      if (partOf[q.index()] != 0xffffffffu) return fail("body '" + info.name + "' is listed twice");
+      partOf[q.index()] = k;
+    }
+  }
+  std::vector<std::uint8_t> allowed;  // [parts x parts], where only listed pairs are glued
+  if (!def.pairs.empty()) {
+    allowed.assign(parts.size() * parts.size(), 0);
+    for (const auto& [i, j] : def.pairs) {
+      if (i >= parts.size() || j >= parts.size() || i == j) return fail("a glued pair names a body outside the glue, or one body twice");
+      allowed[i * parts.size() + j] = allowed[j * parts.size() + i] = 1;
+    }
+  }
+
+  // the particles of different bodies within reach of each other, through a grid of cells as wide as the
+  // farthest reach (each pair found once, from its lower particle id)
+  std::vector<ParticleId> all;
+  double largest = 0.0;
+  for (const BodyId id : parts)
+    for (const ParticleId q : bodies_.info[id.index()].particles) {
+      all.push_back(q);
+      largest = std::max(largest, particles_.radius[q.index()]);
+    }
+  std::sort(all.begin(), all.end());
+  const double cell = def.reach * 2.0 * largest;
+  auto key = [&](const Vec3& x) {
+    const Eigen::Array3d c = (x.array() / cell).floor();
+    return std::array<std::int64_t, 3>{static_cast<std::int64_t>(c[0]), static_cast<std::int64_t>(c[1]),
+                                       static_cast<std::int64_t>(c[2])};
+  };
+  struct KeyHash {
+    std::size_t operator()(const std::array<std::int64_t, 3>& k) const {
+      return static_cast<std::size_t>(k[0] * 73856093 ^ k[1] * 19349663 ^ k[2] * 83492791);
+    }
+  };
+  std::unordered_map<std::array<std::int64_t, 3>, std::vector<ParticleId>, KeyHash> grid;
+  for (const ParticleId q : all) grid[key(particles_.position[q.index()])].push_back(q);
+  std::vector<std::array<ParticleId, 2>> joints;
+  std::vector<std::uint32_t> group(parts.size());
+  std::iota(group.begin(), group.end(), 0u);
+  auto find = [&](std::uint32_t x) {
+    while (group[x] != x) x = group[x] = group[group[x]];
+    return x;
+  };
+  for (const ParticleId q : all) {
+    const Vec3& x = particles_.position[q.index()];
+    const auto k0 = key(x);
+    for (std::int64_t dx = -1; dx <= 1; ++dx)
+      for (std::int64_t dy = -1; dy <= 1; ++dy)
+        for (std::int64_t dz = -1; dz <= 1; ++dz) {
+          const auto it = grid.find({k0[0] + dx, k0[1] + dy, k0[2] + dz});
+          if (it == grid.end()) continue;
+          for (const ParticleId o : it->second) {
+            if (!(q < o)) continue;
+            const std::uint32_t pq = partOf[q.index()], po = partOf[o.index()];
+            if (pq == po || (!allowed.empty() && !allowed[pq * parts.size() + po])) continue;
+            const double reach = def.reach * (particles_.radius[q.index()] + particles_.radius[o.index()]);
+            if ((particles_.position[o.index()] - x).squaredNorm() >= reach * reach) continue;
+            joints.push_back({q, o});
+            group[find(std::max(pq, po))] = find(std::min(pq, po));
+          }
+        }
+  }
+  std::sort(joints.begin(), joints.end());
+  for (std::uint32_t k = 0; k < parts.size(); ++k)
+    if (find(k) != find(0))
+      return fail("body '" + bodies_.info[parts[k].index()].name + "' does not touch the others (within " +
+                  std::to_string(def.reach) + " x the particles' radii summed); glued bodies must hold together");
+
+  // the glued body: its particles' mass properties plus what each part's inertia added to its particles'
+  std::vector<Vec3> x;
+  std::vector<double> m, own;
+  Mat3 residual = Mat3::Zero();
+  Vec3 momentum = Vec3::Zero(), moment = Vec3::Zero();
+  for (const BodyId id : parts) {
+    const BodyState& ps = bodies_.state[id.index()];
+    const Mat3 r = ps.orientation.toRotationMatrix();
+    residual += r * bodies_.info[id.index()].inertiaResidual * r.transpose();
+    const Mat3 inertia = r * bodies_.info[id.index()].inertiaLocal.asDiagonal() * r.transpose();
+    momentum += bodies_.info[id.index()].mass * ps.linearVelocity;
+    moment += bodies_.info[id.index()].mass * ps.position.cross(ps.linearVelocity) + inertia * ps.angularVelocity;
+  }
+  for (const ParticleId q : all) {
+    x.push_back(particles_.position[q.index()]);
+    m.push_back(particles_.mass[q.index()]);
+    own.push_back(particles_.ownInertia[q.index()]);
+  }
+  MassProperties mp = computeMassProperties(x, m, own);
+  mp.inertia += residual;
+  const PrincipalAxes axes = principalAxes(mp.inertia);
+  const BodyId id(bodies_.size());
+  BodyInfo info;
+  info.name = def.name;
+  info.kind = BodyKind::Rigid;
+  info.material = bodies_.info[parts[0].index()].material;
+  info.mass = mp.mass;
+  info.inertiaLocal = axes.moments;
+  // its shape frame is the world frame when it was glued
+  info.principalInShape = axes.rotation;
+  info.comInShape = mp.centre;
+  {
+    const Mat3 r = axes.rotation.toRotationMatrix();
+    info.inertiaResidual = r.transpose() * residual * r;
+  }
+  info.particles = all;
+  info.createdStep = stepIndex_;
+  BodyState state;
+  state.position = mp.centre;
+  state.orientation = axes.rotation;
+  state.invMass = 1.0 / mp.mass;
+  state.invInertiaLocal = axes.moments.cwiseInverse();
+  updateWorldInertia(state);
+  // the parts' momentum and angular momentum, kept
+  state.linearVelocity = momentum / mp.mass;
+  state.angularVelocity = state.invInertiaWorld * (moment - mp.centre.cross(momentum));
+  const Quat toLocal = axes.rotation.conjugate();
+  for (const ParticleId q : all) {
+    const std::size_t i = q.index();
+    const Quat partOrientation = bodies_.state[particles_.body[i].index()].orientation;
+    particles_.body[i] = id;
+    particles_.local[i] = toLocal * (particles_.position[i] - mp.centre);
+    const std::int32_t k = particles_.normalIndex[i];
+    if (k >= 0) {
+      // the cached normal (and its faces) from the part's frame to the glued body's
+      std::array<Vec3, 3> faces{};
+      const std::span<const Vec3> old = normals_.faces(k);
+      for (std::size_t f = 0; f < old.size(); ++f) faces[f] = toLocal * (partOrientation * old[f]);
+      normals_.set(k, toLocal * (partOrientation * normals_[k]), std::span<const Vec3>(faces.data(), old.size()));
+    }
+  }
+  bodies_.add(state, std::move(info));
+  bodyBoxes_.emplace_back();
+  rodForces_.emplace_back();
+  bondLoads_.emplace_back();
+  bodyConnectors_.emplace_back();
+  for (const BodyId p : parts)
+    bodyConnectors_.back().insert(bodyConnectors_.back().end(), bodyConnectors_[p.index()].begin(), bodyConnectors_[p.index()].end());
+  for (const auto& [a, b] : joints)
+    bodyConnectors_.back().push_back(
+        addConnector(a, b, (particles_.position[b.index()] - particles_.position[a.index()]).norm(), def.bonds));
+  connectorDirection_.resize(connectors_.size(), Vec3::Zero());
+  // the parts are retired before any frame (their rows keep their names; created = retired = now)
+  for (const BodyId p : parts) {
+    BodyInfo& retired = bodies_.info[p.index()];
+    retired.alive = false;
+    retired.retiredStep = stepIndex_;
+    retired.particles.clear();
+    bodies_.state[p.index()].invMass = 0.0;
+    broadphase_.removeBody(p);
+    rodForces_[p.index()].reset();
+    bondLoads_[p.index()].reset();
+    rigidBodies_.erase(std::find(rigidBodies_.begin(), rigidBodies_.end(), p));
+  }
+  breakableRigid_.erase(std::remove_if(breakableRigid_.begin(), breakableRigid_.end(),
+                                       [&](BodyId b) { return !bodies_.info[b.index()].alive; }),
+                        breakableRigid_.end());
+  rigidBodies_.push_back(id);
+  updateRigidParticles(id);
+  broadphase_.addBody(id, bodyBoxes_[id.index()], false);
+  contactFinder_.addBody(id, particles_, bodies_);
+  buildLattice(id);
+  contactsStale_ = true;
+  return id;
+}
+
+std::size_t World::recomputeNormals(std::span<const ParticleId> ids) {
+  const std::size_t n = normalUpdater_.recompute(ids, particles_, bodies_, contactFinder_, opened_, normals_);
+  stats_.normalsRecomputed += n;
+  return n;
+}
+
+}  // namespace volpar
