@@ -91,6 +91,7 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
       if (auto ok = writer->writeBreakEvents(world); !ok) return keepPartial(ok.error());
     }
     summary.connectorsBroken += world.breakEvents().size();
+    for (const BreakEvent& e : world.breakEvents()) ++summary.breaksByMode[static_cast<std::size_t>(e.mode)];
     summary.bodiesCreated += world.stats().bodiesCreated;
     summary.normalsRecomputed += world.stats().normalsRecomputed;
     const bool last = i + 1 == options.steps;
@@ -117,6 +118,8 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
   summary.wallSeconds = std::chrono::duration<double>(Clock::now() - start).count();
   summary.stepsPerSecond = summary.stepSeconds > 0.0 ? static_cast<double>(summary.steps) / summary.stepSeconds : 0.0;
   summary.energyEnd = world.energy();
+  summary.breakageEnergy = world.breakageEnergy();
+  summary.fragments = world.fragments();
   if (options.progress) options.progress(summary.steps, options.steps);
   if (writer) {
     summary.frames = writer->frames();

@@ -52,6 +52,9 @@ struct RunSummary {
   std::size_t connectorsBroken = 0;  ///< rods and springs that broke
   std::size_t bodiesCreated = 0;     ///< fragments of bodies that broke apart
   std::size_t normalsRecomputed = 0; ///< cached surface normals recomputed after breaks and strain
+  std::array<std::size_t, 4> breaksByMode{};  ///< connectors broken by BreakMode (tension, compression, shear, strain)
+  double breakageEnergy = 0.0;       ///< elastic energy the broken bonds held [J]
+  FragmentHistogram fragments;       ///< at the end
   bool interrupted = false;
   std::string output;  ///< the trajectory written: the output's name, or its partial name when interrupted
 };

@@ -11,6 +11,7 @@
 // nothing once the world is built (buffers keep their capacity), and never writes files: a Runner
 // watches the world and writes trajectory frames.
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -70,6 +71,18 @@ struct BreakEvent {
   double value = 0.0;
   BreakMode mode = BreakMode::Tension;
   double energy = 0.0;     ///< bonds: the elastic energy it held [J] (0 for rods and springs)
+};
+
+/// The fragments of a moment: the alive bodies that can break or broke off one (BodyInfo::breakable), by
+/// their particle count.
+struct FragmentHistogram {
+  static constexpr std::size_t kBins = 32;  ///< bin k holds fragments of 2^k to 2^(k+1) - 1 particles
+  std::size_t count = 0;                    ///< fragments
+  std::size_t singles = 0;                  ///< fragments of one particle
+  std::size_t largest = 0;                  ///< particles in the largest fragment
+  std::size_t particles = 0;                ///< particles in all of them
+  std::array<std::int64_t, kBins> bodies{}; ///< fragments per bin
+  std::array<double, kBins> mass{};         ///< their mass per bin [kg]
 };
 
 /// How World::glue joins bodies into one.
@@ -138,6 +151,10 @@ class World {
   /// Recomputes the cached normals of exactly these particles from their connector neighbourhood
   /// (NormalUpdater in collision/normal_cache.hpp); counted in stats().normalsRecomputed.
   std::size_t recomputeNormals(std::span<const ParticleId> ids);
+  /// The fragments now.
+  [[nodiscard]] FragmentHistogram fragments() const;
+  /// The elastic energy the bonds that broke so far held when they broke [J].
+  [[nodiscard]] double breakageEnergy() const { return breakageEnergy_; }
   /// Connectors that broke in the last step.
   [[nodiscard]] const std::vector<BreakEvent>& breakEvents() const { return breakEvents_; }
   /// The connectors of a body (broken ones included).
@@ -243,6 +260,7 @@ class World {
   std::vector<BondLoad> bondLoadScratch_;
   std::vector<double> deformableForces_;                    // [C] XPBD connector forces [N]
   std::vector<BreakEvent> breakEvents_;
+  double breakageEnergy_ = 0.0;
   std::unique_ptr<ThreadPool> pool_;  // null with one thread
   std::vector<Vec3> deformableContactImpulses_;  // per deformable contact: what its particle got against a rigid body
   std::vector<Vec3> deformableContactMoments_;   // (and the angular momentum about the origin)

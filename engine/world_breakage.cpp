@@ -146,6 +146,7 @@ void World::applyBreakage() {
                                          [&](BodyId id) { return !bodies_.info[id.index()].alive || !breakable(id); }),
                           breakableRigid_.end());
   stats_.connectorsBroken = breakEvents_.size();
+  for (const BreakEvent& e : breakEvents_) breakageEnergy_ += e.energy;
   if (anyBroken) contactFinder_.refreshAdjacency(particles_, connectors_);
   // the faces a break opened: the particles within two connectors of it (their neighbourhoods changed)
   if (!seeds_.empty()) recomputeNormalsAround(seeds_, 2);
@@ -459,6 +460,7 @@ Result<BodyId> World::glue(std::span<const BodyId> parts, const GlueDef& def) {
     BodyInfo& retired = bodies_.info[p.index()];
     retired.alive = false;
     retired.retiredStep = stepIndex_;
+    retired.gluedInto = id;
     retired.particles.clear();
     bodies_.state[p.index()].invMass = 0.0;
     broadphase_.removeBody(p);
@@ -476,6 +478,24 @@ Result<BodyId> World::glue(std::span<const BodyId> parts, const GlueDef& def) {
   buildLattice(id);
   contactsStale_ = true;
   return id;
+}
+
+FragmentHistogram World::fragments() const {
+  FragmentHistogram h;
+  for (std::size_t i = 0; i < bodies_.size(); ++i) {
+    const BodyInfo& info = bodies_.info[i];
+    if (!info.alive || !info.breakable) continue;
+    const std::size_t n = info.particles.size();
+    std::size_t bin = 0;
+    while (bin + 1 < FragmentHistogram::kBins && (std::size_t{2} << bin) <= n) ++bin;
+    ++h.count;
+    h.particles += n;
+    h.largest = std::max(h.largest, n);
+    if (n == 1) ++h.singles;
+    ++h.bodies[bin];
+    h.mass[bin] += info.mass;
+  }
+  return h;
 }
 
 std::size_t World::recomputeNormals(std::span<const ParticleId> ids) {

@@ -113,6 +113,14 @@ int run(const RunArgs& args) {
         .field("connectors_broken", s.connectorsBroken)
         .field("bodies_created", s.bodiesCreated)
         .field("normals_recomputed", s.normalsRecomputed)
+        .field("breaks_in_tension", s.breaksByMode[0])
+        .field("breaks_in_compression", s.breaksByMode[1])
+        .field("breaks_in_shear", s.breaksByMode[2])
+        .field("breaks_by_strain", s.breaksByMode[3])
+        .field("breakage_energy", s.breakageEnergy)
+        .field("fragments", s.fragments.count)
+        .field("single_particle_fragments", s.fragments.singles)
+        .field("largest_fragment", s.fragments.largest)
         .field("max_penetration", s.maxPenetration)
         .field("interrupted", s.interrupted)
         .field("output", s.output);
@@ -148,9 +156,18 @@ int run(const RunArgs& args) {
                 t.integrateVelocities, t.solver, t.integratePositions, t.broadphase, t.particleContacts, t.narrowPhase);
     std::printf("contacts     %zu at the end, deepest overlap during the run %.3g m\n", world.stats().contacts,
                 s.maxPenetration);
-    if (s.connectorsBroken > 0 || s.normalsRecomputed > 0)
-      std::printf("breakage     %zu connectors broke, %zu fragments made, %zu normals recomputed (%.3f s)\n",
-                  s.connectorsBroken, s.bodiesCreated, s.normalsRecomputed, t.breakage);
+    if (s.connectorsBroken > 0 || s.normalsRecomputed > 0) {
+      std::printf("breakage     %zu connectors broke (tension %zu, compression %zu, shear %zu, strain %zu), %zu fragments "
+                  "made, %zu normals recomputed (%.3f s)\n",
+                  s.connectorsBroken, s.breaksByMode[0], s.breaksByMode[1], s.breaksByMode[2], s.breaksByMode[3],
+                  s.bodiesCreated, s.normalsRecomputed, t.breakage);
+      if (s.fragments.count > 0)
+        std::printf("fragments    %zu at the end (%zu of one particle, %.3g %% of their particles), the largest %zu "
+                    "particles; the broken bonds held %.4g J\n",
+                    s.fragments.count, s.fragments.singles,
+                    s.fragments.particles ? 100.0 * static_cast<double>(s.fragments.singles) / static_cast<double>(s.fragments.particles) : 0.0,
+                    s.fragments.largest, s.breakageEnergy);
+    }
     std::printf("planes       %zu patches over the run, %zu unvalidated (%.3g %%), %zu look-aheads, %zu candidates, "
                 "%zu taken over from the step before\n",
                 s.patches, s.unvalidatedPatches, s.patches ? 100.0 * static_cast<double>(s.unvalidatedPatches) / static_cast<double>(s.patches) : 0.0,

@@ -59,6 +59,7 @@ struct BodyInfo {
   std::int64_t createdStep = 0;                ///< the first step after which it exists (0: from the start)
   std::int64_t retiredStep = -1;               ///< the step (1 = the first) in which it broke apart, -1 while alive
   BodyId parent;                               ///< the body it broke off from, if any
+  BodyId gluedInto;                            ///< the body it was glued into (World::glue), if any
   /// It has connectors that can break, or broke off a body that had: a fragment, or what may become one
   bool breakable = false;
 };

@@ -459,7 +459,7 @@ struct PatchSeries {
 
 /// Per-body data that does not change over a body's life, one row per body, appended as bodies appear.
 struct BodyInfoSeries {
-  Series name, kind, mass, moments, axes, com, created, retired, parent;
+  Series name, kind, mass, moments, axes, com, created, retired, parent, gluedInto;
   explicit BodyInfoSeries(hid_t g = H5I_INVALID_HID) {
     if (g < 0) return;
     Hid str = vlenString();
@@ -472,6 +472,7 @@ struct BodyInfoSeries {
     created = Series(g, "created", H5T_STD_I64LE, {});
     retired = Series(g, "retired", H5T_STD_I64LE, {});
     parent = Series(g, "parent", H5T_STD_I32LE, {});
+    gluedInto = Series(g, "glued_into", H5T_STD_I32LE, {});
     attrString(mass.id(), "unit", "kg");
     attrString(moments.id(), "unit", "kg m2");
     attrString(com.id(), "unit", "m");
@@ -481,7 +482,7 @@ struct BodyInfoSeries {
 /// The connectors that broke, one row per event.
 struct BreakageSeries {
   Hid group;
-  Series step, time, connector, particleA, particleB, body, kind, value;
+  Series step, time, connector, particleA, particleB, body, kind, value, mode, energy;
   explicit BreakageSeries(hid_t file = H5I_INVALID_HID) {
     if (file < 0) return;
     group = ::volpar::group(file, "breakage");
@@ -493,8 +494,12 @@ struct BreakageSeries {
     body = Series(group.get(), "body", H5T_STD_I32LE, {});
     kind = Series(group.get(), "kind", H5T_STD_I32LE, {});
     value = Series(group.get(), "value", H5T_IEEE_F64LE, {});
+    mode = Series(group.get(), "mode", H5T_STD_I32LE, {});
+    energy = Series(group.get(), "energy", H5T_IEEE_F64LE, {});
     attrString(time.id(), "unit", "s");
-    attrString(kind.id(), "meaning", "0: rod (value: force, N), 1: spring (value: strain)");
+    attrString(energy.id(), "unit", "J");
+    attrString(kind.id(), "meaning", "0: rod (value: force, N), 1: spring (value: strain), 2: bond (value: the stress that broke it, Pa)");
+    attrString(mode.id(), "meaning", "0: tension, 1: compression, 2: shear, 3: strain");
   }
 };
 
@@ -505,6 +510,7 @@ struct H5mdWriter::Impl {
   Element bodyPosition, bodyOrientation, bodyVelocity, bodyAngularVelocity;
   Element kinetic, potential, total, linearMomentum, angularMomentum, contactCount, maxPenetration;
   Element patchCount, patchesByCase, unvalidatedPatches, lookAheads, candidates;
+  Element fragmentCount, fragmentSizes, fragmentMass, breakageEnergy;
   ContactSeries contacts;
   PatchSeries patches;
   BodyInfoSeries bodyInfo;
@@ -541,6 +547,8 @@ struct H5mdWriter::Impl {
       bodyInfo.retired.append(H5T_NATIVE_INT64, &info.retiredStep);
       const std::int32_t parent = info.parent.valid() ? static_cast<std::int32_t>(info.parent.value) : -1;
       bodyInfo.parent.append(H5T_NATIVE_INT32, &parent);
+      const std::int32_t glued = info.gluedInto.valid() ? static_cast<std::int32_t>(info.gluedInto.value) : -1;
+      bodyInfo.gluedInto.append(H5T_NATIVE_INT32, &glued);
       retiredWritten.push_back(info.retiredStep >= 0 ? 1 : 0);
     }
     if (nb > bodiesWritten) {
@@ -552,6 +560,8 @@ struct H5mdWriter::Impl {
     for (std::size_t i = 0; i < nb; ++i)
       if (!retiredWritten[i] && b.info[i].retiredStep >= 0) {
         bodyInfo.retired.writeAt(i, H5T_NATIVE_INT64, &b.info[i].retiredStep);
+        const std::int32_t glued = b.info[i].gluedInto.valid() ? static_cast<std::int32_t>(b.info[i].gluedInto.value) : -1;
+        bodyInfo.gluedInto.writeAt(i, H5T_NATIVE_INT32, &glued);
         retiredWritten[i] = 1;
       }
   }
@@ -663,6 +673,20 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       impl->unvalidatedPatches = Element(obs.get(), "unvalidated_patches", H5T_STD_I64LE, {}, "", clock);
       impl->lookAheads = Element(obs.get(), "look_aheads", H5T_STD_I64LE, {}, "", clock);
       impl->candidates = Element(obs.get(), "candidates", H5T_STD_I64LE, {}, "", clock);
+      constexpr std::size_t bins = FragmentHistogram::kBins;
+      impl->fragmentCount = Element(obs.get(), "fragment_count", H5T_STD_I64LE, {}, "", clock);
+      impl->fragmentSizes = Element(obs.get(), "fragment_sizes", H5T_STD_I64LE, {bins}, "", clock);
+      impl->fragmentMass = Element(obs.get(), "fragment_mass", H5T_IEEE_F64LE, {bins}, "kg", clock);
+      impl->breakageEnergy = Element(obs.get(), "breakage_energy", H5T_IEEE_F64LE, {}, "J", clock);
+      {
+        // bin k: fragments of 2^k to 2^(k+1) - 1 particles
+        std::vector<std::int64_t> lower(bins);
+        for (std::size_t k = 0; k < bins; ++k) lower[k] = std::int64_t{1} << k;
+        for (const char* name : {"fragment_sizes", "fragment_mass"}) {
+          Hid g = checked(H5Gopen2(obs.get(), name, H5P_DEFAULT), H5Gclose, "group");
+          dataset(g.get(), "bin_lower", {bins}, lower.data());
+        }
+      }
     }
     // /contacts (the engine's own group): ragged per-frame arrays, on the particles' clock
     impl->contacts = ContactSeries(f);
@@ -796,6 +820,13 @@ Status H5mdWriter::writeFrame(const World& world) {
     m.unvalidatedPatches.append(H5T_NATIVE_INT64, &unvalidated, step, time);
     m.lookAheads.append(H5T_NATIVE_INT64, &lookAheads, step, time);
     m.candidates.append(H5T_NATIVE_INT64, &candidates, step, time);
+    const FragmentHistogram fragments = world.fragments();
+    const std::int64_t fragmentCount = asInt(fragments.count);
+    const double breakageEnergy = world.breakageEnergy();
+    m.fragmentCount.append(H5T_NATIVE_INT64, &fragmentCount, step, time);
+    m.fragmentSizes.append(H5T_NATIVE_INT64, fragments.bodies.data(), step, time);
+    m.fragmentMass.append(H5T_NATIVE_DOUBLE, fragments.mass.data(), step, time);
+    m.breakageEnergy.append(H5T_NATIVE_DOUBLE, &breakageEnergy, step, time);
     writeContacts(world.contacts());
     writePatches(world.patches());
 
@@ -917,7 +948,8 @@ Status H5mdWriter::writeBreakEvents(const World& world) {
       const double t = static_cast<double>(e.step) * world.settings().dt;
       const auto i32 = [](std::uint32_t v) { return static_cast<std::int32_t>(v); };
       const std::int32_t c = i32(e.connector.value), a = i32(e.a.value), bb = i32(e.b.value), body = i32(e.body.value),
-                         kind = e.kind == ConnectorKind::Rod ? 0 : 1;
+                         kind = e.kind == ConnectorKind::Rod ? 0 : e.kind == ConnectorKind::Spring ? 1 : 2,
+                         mode = static_cast<std::int32_t>(e.mode);
       s.step.append(H5T_NATIVE_INT64, &e.step);
       s.time.append(H5T_NATIVE_DOUBLE, &t);
       s.connector.append(H5T_NATIVE_INT32, &c);
@@ -926,6 +958,8 @@ Status H5mdWriter::writeBreakEvents(const World& world) {
       s.body.append(H5T_NATIVE_INT32, &body);
       s.kind.append(H5T_NATIVE_INT32, &kind);
       s.value.append(H5T_NATIVE_DOUBLE, &e.value);
+      s.mode.append(H5T_NATIVE_INT32, &mode);
+      s.energy.append(H5T_NATIVE_DOUBLE, &e.energy);
     }
   } catch (const H5Failure& e) {
     return Error{path_, 0, 0, "cannot write breakage events (" + e.what + ")"};

@@ -91,12 +91,18 @@ def validate(path, scene=None, frames=None):
     created, retired, parent = bodies["created"][()], bodies["retired"][()], bodies["parent"][()]
     expect(created.shape == retired.shape == parent.shape == (B,), "created/retired/parent must be [B]")
     expect(np.all((parent >= -1) & (parent < np.arange(B))), "a body's parent must be an earlier body or -1")
+    glued = bodies["glued_into"][()]
+    expect(glued.shape == (B,) and np.all((glued == -1) | ((glued > np.arange(B)) & (glued < B))),
+           "a body is glued into a later body or none (-1)")
     for b in range(B):
+        if glued[b] >= 0:
+            expect(retired[b] == created[glued[b]] and kinds[b] == kinds[glued[b]] == "rigid",
+                   f"body {b} was glued into body {glued[b]} but did not become it")
         if parent[b] >= 0:
             expect(retired[parent[b]] == created[b], f"body {b} was created at step {created[b]}, "
                                                      f"its parent retired at {retired[parent[b]]}")
             expect(kinds[b] == kinds[parent[b]], f"body {b} has another kind than its parent")
-        else:
+        elif not np.any(glued == b):
             expect(created[b] == 0, f"body {b} has no parent but was created at step {created[b]}")
         expect(retired[b] == -1 or retired[b] >= created[b], f"body {b} retired before it was created")
     exists = (created[None, :] <= step[:, None]) & ((retired[None, :] < 0) | (step[:, None] < retired[None, :]))
@@ -149,20 +155,46 @@ def validate(path, scene=None, frames=None):
         br = f["breakage"]
         bs, bt = br["step"][()], br["time"][()]
         n = bs.shape[0]
-        for key in ("connector", "particle_a", "particle_b", "body", "kind", "value"):
+        for key in ("connector", "particle_a", "particle_b", "body", "kind", "value", "mode", "energy"):
             expect(br[key].shape == (n,), f"/breakage/{key} must be [{n}]")
         expect(np.all(np.diff(bs) >= 0) and np.allclose(bt, bs * dt, rtol=1e-12), "breakage steps/times")
         expect(len(np.unique(br["connector"][()])) == n, "a connector broke twice")
         bb, bk, bv = br["body"][()], br["kind"][()], br["value"][()]
-        expect(np.all((bb >= 0) & (bb < B)) and np.all(np.isin(bk, [0, 1])) and np.all(np.isfinite(bv)),
+        expect(np.all((bb >= 0) & (bb < B)) and np.all(np.isin(bk, [0, 1, 2])) and np.all(np.isfinite(bv)),
                "breakage body/kind/value out of range")
+        bm, be = br["mode"][()], br["energy"][()]
+        # springs break by strain, rods by tension or compression, bonds by tension or shear; only bonds hold energy
+        allowed = {0: (0, 1), 1: (3,), 2: (0, 2)}
+        expect(all(m in allowed[k] for k, m in zip(bk, bm)), "a break's mode does not fit its connector's kind")
+        expect(np.all(np.isfinite(be) & (be >= 0)) and np.all(be[bk != 2] == 0), "breakage energy out of range")
         pa, pb = br["particle_a"][()], br["particle_b"][()]
         expect(np.all((pa >= 0) & (pa < P) & (pb >= 0) & (pb < P) & (pa != pb)), "breakage particles out of range")
-        for b in np.nonzero(retired >= 0)[0]:
+        for b in np.nonzero((retired >= 0) & (glued < 0))[0]:
             expect(np.any((bb == b) & (bs == retired[b])), f"body {b} broke apart at step {retired[b]} "
                                                            "without a breakage event")
     else:
-        expect(np.all(retired < 0), "bodies broke apart but there is no /breakage group")
+        expect(np.all((retired < 0) | (glued >= 0)), "bodies broke apart but there is no /breakage group")
+        bs, be = np.zeros(0, dtype=np.int64), np.zeros(0)
+
+    # fragments: the histogram adds up to the count; every body that broke off one and exists in a frame is
+    # in its bin; the breakage energy is the sum of the energies of the breaks up to the frame
+    obs = f["observables"]
+    fcount, fstep, _ = element(obs, "fragment_count", (), "i")
+    fsizes, _, _ = element(obs, "fragment_sizes", (32,), "i")
+    fmass, _, _ = element(obs, "fragment_mass", (32,), "f")
+    fenergy, _, _ = element(obs, "breakage_energy", (), "f")
+    lower = obs["fragment_sizes/bin_lower"][()]
+    expect(np.array_equal(lower, 2 ** np.arange(32)), "fragment bins are not powers of two")
+    expect(np.array_equal(fstep, step), "fragments sampled at different steps")
+    expect(np.array_equal(fsizes.sum(axis=1), fcount), "fragment histogram does not add up to the fragment count")
+    expect(np.all((fmass > 0) == (fsizes > 0)), "fragment mass where there are no fragments, or none where there are")
+    for t in range(T):
+        pieces = np.nonzero(exists[t] & (parent >= 0))[0]
+        sizes = np.array([np.count_nonzero(body[t] == b) for b in pieces], dtype=np.int64)
+        bins = np.bincount(np.floor(np.log2(np.maximum(sizes, 1))).astype(int), minlength=32) if len(sizes) else np.zeros(32)
+        expect(np.all(bins <= fsizes[t]), f"frame {t}: bodies that broke off are missing from the fragment histogram")
+        expect(np.isclose(fenergy[t], be[bs <= step[t]].sum(), rtol=1e-9, atol=1e-300),
+               f"frame {t}: breakage energy != the energies of the breaks so far")
 
     # observables: energies add up; kinetic energy from the particles' own data where all bodies are point-like
     kin, ostep, otime = element(f["observables"], "kinetic_energy", (), "f")
@@ -371,6 +403,8 @@ def self_test(path):
         "body row of a missing body": lambda f: f["particles/bodies/created"].__setitem__(-1, 10 ** 9),
         "a body before it exists": lambda f: f["particles/bodies/position/value"].__setitem__((0, -1), np.zeros(3)),
         "breakage events lost": lambda f: f.__delitem__("breakage"),
+        "fragment histogram": lambda f: f["observables/fragment_sizes/value"].__setitem__(
+            (-1, 0), f["observables/fragment_sizes/value"][-1, 0] + 1),
         "patch normal not unit": lambda f: f["patches/normal"].__setitem__(0, f["patches/normal"][0] * 1.001),
         "patch offsets": lambda f: f["patches/offset"].__setitem__(-1, f["patches/offset"][-1] + 1),
         "patch case unknown": lambda f: f["patches/case"].__setitem__(0, len(f["patches/case"].attrs["case_names"])),
