@@ -54,10 +54,29 @@ BondFailure bondFailure(const BondStress& stress, double tensileStrength, double
   return BondFailure::None;
 }
 
+namespace {
+
+/// K_e = B^T D B of one beam, D = diag(EA/L, GJ/L, (EI/L) [4 2; 2 4] (x) I3).
+Eigen::Matrix<double, 12, 12> beamStiffness(const Vec3& e, double length, double axial, double torsion, double bending) {
+  const Mat8x12 b = strainMap(e, length);
+  Eigen::Matrix<double, 8, 8> dm = Eigen::Matrix<double, 8, 8>::Zero();
+  dm(0, 0) = axial;
+  dm(1, 1) = torsion;
+  dm.block<3, 3>(2, 2) = 4.0 * bending * Mat3::Identity();
+  dm.block<3, 3>(5, 5) = 4.0 * bending * Mat3::Identity();
+  dm.block<3, 3>(2, 5) = 2.0 * bending * Mat3::Identity();
+  dm.block<3, 3>(5, 2) = 2.0 * bending * Mat3::Identity();
+  return b.transpose() * dm * b;
+}
+
+}  // namespace
+
 bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const ConnectorStore& c,
                       std::span<const ConnectorId> bonds) {
   bonds_.assign(bonds.begin(), bonds.end());
   beams_.clear();
+  factorisations_ = 0;
+  stale_ = false;
   if (bonds_.empty()) return false;
   const std::size_t n = body.particles.size();
   std::size_t maxId = 0;
@@ -82,25 +101,15 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
     beam.torsion = shearModulus * 2.0 * inertia / beam.length;
     beam.bending = e * inertia / beam.length;
     beams_.push_back(beam);
-    // K_e = B^T D B, D = diag(EA/L, GJ/L, (EI/L) [4 2; 2 4] (x) I3)
-    const Mat8x12 b = strainMap(beam.e, beam.length);
-    Eigen::Matrix<double, 8, 8> dm = Eigen::Matrix<double, 8, 8>::Zero();
-    dm(0, 0) = beam.axial;
-    dm(1, 1) = beam.torsion;
-    dm.block<3, 3>(2, 2) = 4.0 * beam.bending * Mat3::Identity();
-    dm.block<3, 3>(5, 5) = 4.0 * beam.bending * Mat3::Identity();
-    dm.block<3, 3>(2, 5) = 2.0 * beam.bending * Mat3::Identity();
-    dm.block<3, 3>(5, 2) = 2.0 * beam.bending * Mat3::Identity();
-    const Eigen::Matrix<double, 12, 12> ke = b.transpose() * dm * b;
+    // every entry of the element's blocks is kept in the pattern (zeros too), so that removing beams later
+    // changes values only
+    const Eigen::Matrix<double, 12, 12> ke = beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending);
     const std::uint32_t node[2] = {beam.a, beam.b};
     for (int bi = 0; bi < 2; ++bi)
       for (int bj = 0; bj < 2; ++bj)
         for (int i = 0; i < 6; ++i)
-          for (int j = 0; j < 6; ++j) {
-            const double v = ke(6 * bi + i, 6 * bj + j);
-            if (v == 0.0) continue;
-            t.emplace_back(static_cast<int>(6 * node[bi]) + i, static_cast<int>(6 * node[bj]) + j, v);
-          }
+          for (int j = 0; j < 6; ++j)
+            t.emplace_back(static_cast<int>(6 * node[bi]) + i, static_cast<int>(6 * node[bj]) + j, ke(6 * bi + i, 6 * bj + j));
     for (int bi = 0; bi < 2; ++bi)
       for (int i = 0; i < 6; ++i) diag[6 * node[bi] + i] += ke(6 * bi + i, 6 * bi + i);
   }
@@ -115,11 +124,39 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 6; ++k)
       t.emplace_back(static_cast<int>(6 * i) + k, static_cast<int>(6 * i) + k, 1e-9 * (k < 3 ? maxMove : maxTurn));
-  Eigen::SparseMatrix<double> km(static_cast<Eigen::Index>(6 * n), static_cast<Eigen::Index>(6 * n));
-  km.setFromTriplets(t.begin(), t.end());
-  ldlt_.compute(km);
+  k_.resize(static_cast<Eigen::Index>(6 * n), static_cast<Eigen::Index>(6 * n));
+  k_.setFromTriplets(t.begin(), t.end());
+  k_.makeCompressed();
+  ldlt_.analyzePattern(k_);
   f_.resize(static_cast<Eigen::Index>(6 * n));
+  return factorise();
+}
+
+bool BondLoads::factorise() {
+  ldlt_.factorize(k_);
+  ++factorisations_;
+  stale_ = false;
   return ldlt_.info() == Eigen::Success;
+}
+
+void BondLoads::assemble(const Beam& beam, double sign) {
+  const Eigen::Matrix<double, 12, 12> ke = beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending);
+  const std::uint32_t node[2] = {beam.a, beam.b};
+  for (int bi = 0; bi < 2; ++bi)
+    for (int bj = 0; bj < 2; ++bj)
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 6; ++j)
+          k_.coeffRef(static_cast<Eigen::Index>(6 * node[bi]) + i, static_cast<Eigen::Index>(6 * node[bj]) + j) +=
+              sign * ke(6 * bi + i, 6 * bj + j);
+}
+
+void BondLoads::remove(std::span<const std::size_t> entries) {
+  for (const std::size_t k : entries) {
+    if (!beams_[k].active) continue;
+    assemble(beams_[k], -1.0);
+    beams_[k].active = false;
+    stale_ = true;
+  }
 }
 
 void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleStore& p, std::span<const Vec3> loads,
@@ -147,10 +184,42 @@ void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleSt
     f_.segment<3>(static_cast<Eigen::Index>(6 * i + 3)) =
         -(p.ownInertia[q] * alphaLocal + (p.mass[q] / body.mass) * residualMoment);
   }
-  u_ = ldlt_.solve(f_);
+  if (!stale_) {
+    u_ = ldlt_.solve(f_);
+  } else {
+    // conjugate gradients on the frame as it is now, preconditioned by the factorisation of the frame it was
+    // (which differs by the bonds removed since): a few iterations, or a new factorisation where they do not do
+    constexpr int kIterations = 40;
+    constexpr double kTolerance = 1e-10;
+    u_ = ldlt_.solve(f_);
+    r_ = f_ - k_ * u_;
+    const double target = kTolerance * kTolerance * f_.squaredNorm();
+    z_ = ldlt_.solve(r_);
+    p_ = z_;
+    double rz = r_.dot(z_);
+    int it = 0;
+    for (; it < kIterations && r_.squaredNorm() > target; ++it) {
+      q_ = k_ * p_;
+      const double step = rz / p_.dot(q_);
+      u_ += step * p_;
+      r_ -= step * q_;
+      z_ = ldlt_.solve(r_);
+      const double next = r_.dot(z_);
+      p_ = z_ + (next / rz) * p_;
+      rz = next;
+    }
+    if (r_.squaredNorm() > target) {
+      factorise();
+      u_ = ldlt_.solve(f_);
+    }
+  }
   out.resize(beams_.size());
   for (std::size_t k = 0; k < beams_.size(); ++k) {
     const Beam& beam = beams_[k];
+    if (!beam.active) {
+      out[k] = BondLoad{};
+      continue;
+    }
     Vec12 d;
     d.segment<6>(0) = u_.segment<6>(static_cast<Eigen::Index>(6 * beam.a));
     d.segment<6>(6) = u_.segment<6>(static_cast<Eigen::Index>(6 * beam.b));

@@ -65,7 +65,14 @@ class BondLoads {
   void solve(const BodyState& s, const BodyInfo& body, const ParticleStore& particles, std::span<const Vec3> loads,
              std::vector<BondLoad>& out);
 
+  /// Takes broken bonds (entries of bonds()) out of the frame; their loads are zero from then on. The
+  /// factorisation is kept: later solves use it to precondition conjugate gradients on the frame without
+  /// them, and factorise again (on the same sparsity pattern) only where that converges slowly.
+  void remove(std::span<const std::size_t> entries);
+
   [[nodiscard]] std::span<const ConnectorId> bonds() const { return bonds_; }
+  /// Factorisations done since build() (the first included), for tests and statistics.
+  [[nodiscard]] std::size_t factorisations() const { return factorisations_; }
 
  private:
   struct Beam {
@@ -73,12 +80,20 @@ class BondLoads {
     Vec3 e = Vec3::Zero();       // unit, a to b, body frame
     double length = 0.0;
     double axial = 0.0, torsion = 0.0, bending = 0.0;  // E A / L, G J / L, E I / L
+    bool active = true;
   };
+  /// Adds `sign` times the beam's stiffness to k_.
+  void assemble(const Beam& beam, double sign);
+  bool factorise();
+
   std::vector<ConnectorId> bonds_;
   std::vector<Beam> beams_;
   std::vector<std::uint32_t> local_;  // particle id -> local index (only the body's)
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
-  Eigen::VectorXd f_, u_;
+  Eigen::SparseMatrix<double> k_;     // the frame's stiffness now
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;  // of k_ when it was last factorised
+  bool stale_ = false;                // k_ changed since
+  std::size_t factorisations_ = 0;
+  Eigen::VectorXd f_, u_, r_, z_, p_, q_;
 };
 
 }  // namespace volpar

@@ -258,6 +258,16 @@ class World {
   std::vector<Vec3> loads_;                                 // [P] loads on particles of breakable bodies [N]
   std::vector<double> rodForceScratch_;
   std::vector<BondLoad> bondLoadScratch_;
+  struct Overload {
+    ConnectorId connector;
+    std::size_t entry = 0;  // its index in the body's lattice
+    double ratio = 0.0;   // load over strength
+    double value = 0.0;   // BreakEvent::value
+    double energy = 0.0;
+    BreakMode mode = BreakMode::Tension;
+  };
+  std::vector<Overload> overloaded_;  // this pass's overloaded connectors of one body
+  std::vector<std::size_t> brokenEntries_;
   std::vector<double> deformableForces_;                    // [C] XPBD connector forces [N]
   std::vector<BreakEvent> breakEvents_;
   double breakageEnergy_ = 0.0;

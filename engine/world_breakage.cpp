@@ -68,49 +68,71 @@ void World::applyBreakage() {
   breakEvents_.clear();
   seeds_.clear();
   bool anyBroken = false;
-  // rigid bodies: the connectors' loads in the elastic lattice (rods) or frame (bonds) under this step's loads
-  // (fragments made below join the list and are judged under the same loads in this step)
+  // rigid bodies: the connectors' loads in the elastic lattice (rods) or frame (bonds) under this step's loads.
+  // Failure progresses within the step: the most overloaded connectors break first (those within
+  // kCriticalBand of the worst overload), the body's lattice is solved again without them under the same
+  // loads, and so on, so that load is shed where the body fails first (a piece knocked out of a wall takes
+  // the blow with it) instead of every connector that the intact body would overload breaking at once.
+  // Fragments made join the list and are judged in this step under the same loads.
+  constexpr double kCriticalBand = 0.8;
+  constexpr int kMaxPasses = 64;  // then every overloaded connector breaks at once
   for (std::size_t k = 0; k < breakableRigid_.size(); ++k) {
     const BodyId id = breakableRigid_[k];
-    if (!bodies_.info[id.index()].alive) continue;
-    bool broke = false;
-    const auto record = [&](ConnectorId cid, double value, BreakMode mode, double energy) {
-      const std::size_t c = cid.index();
-      connectors_.broken[c] = 1;
-      opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
-      breakEvents_.push_back({stepIndex_ + 1, cid, connectors_.a[c], connectors_.b[c], id, connectors_.kind[c], value, mode, energy});
-      seeds_.push_back(connectors_.a[c]);
-      seeds_.push_back(connectors_.b[c]);
-      broke = true;
-    };
-    if (BondLoads* bl = bondLoads_[id.index()].get()) {
-      bl->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, bondLoadScratch_);
-      const std::span<const ConnectorId> bonds = bl->bonds();
-      for (std::size_t r = 0; r < bonds.size(); ++r) {
-        const std::size_t c = bonds[r].index();
-        const BondStress stress = bondStress(bondLoadScratch_[r], connectors_.bondRadius[c]);
-        const BondFailure failure = bondFailure(stress, connectors_.tensileStrength[c], connectors_.shearStrength[c]);
-        if (failure == BondFailure::Tension) record(bonds[r], stress.tensile, BreakMode::Tension, bondLoadScratch_[r].energy);
-        else if (failure == BondFailure::Shear) record(bonds[r], stress.shear, BreakMode::Shear, bondLoadScratch_[r].energy);
+    for (int pass = 0; bodies_.info[id.index()].alive && breakable(id); ++pass) {
+      overloaded_.clear();
+      double worst = 0.0;
+      const auto overload = [&](std::size_t entry, ConnectorId cid, double ratio, double value, BreakMode mode, double energy) {
+        overloaded_.push_back({cid, entry, ratio, value, energy, mode});
+        worst = std::max(worst, ratio);
+      };
+      if (BondLoads* bl = bondLoads_[id.index()].get()) {
+        bl->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, bondLoadScratch_);
+        const std::span<const ConnectorId> bonds = bl->bonds();
+        for (std::size_t r = 0; r < bonds.size(); ++r) {
+          const std::size_t c = bonds[r].index();
+          const BondStress stress = bondStress(bondLoadScratch_[r], connectors_.bondRadius[c]);
+          const BondFailure failure = bondFailure(stress, connectors_.tensileStrength[c], connectors_.shearStrength[c]);
+          if (failure == BondFailure::None) continue;
+          const double ratio = std::max(stress.tensile / connectors_.tensileStrength[c], stress.shear / connectors_.shearStrength[c]);
+          // the energy it held when the stress reached its strength (energy grows with the load squared)
+          const double energy = bondLoadScratch_[r].energy / (ratio * ratio);
+          if (failure == BondFailure::Tension) overload(r, bonds[r], ratio, stress.tensile, BreakMode::Tension, energy);
+          else overload(r, bonds[r], ratio, stress.shear, BreakMode::Shear, energy);
+        }
+      } else if (RodForces* rf = rodForces_[id.index()].get()) {
+        rf->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, rodForceScratch_);
+        const std::span<const ConnectorId> rods = rf->rods();
+        for (std::size_t r = 0; r < rods.size(); ++r) {
+          const std::size_t c = rods[r].index();
+          // tension above the tensile strength, or compression above the compressive strength
+          const double f = rodForceScratch_[r];
+          if (f > connectors_.breakLimit[c]) overload(r, rods[r], f / connectors_.breakLimit[c], f, BreakMode::Tension, 0.0);
+          else if (-f > connectors_.compressionLimit[c])
+            overload(r, rods[r], -f / connectors_.compressionLimit[c], f, BreakMode::Compression, 0.0);
+        }
       }
-    } else if (RodForces* rf = rodForces_[id.index()].get()) {
-      rf->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, rodForceScratch_);
-      const std::span<const ConnectorId> rods = rf->rods();
-      for (std::size_t r = 0; r < rods.size(); ++r) {
-        const std::size_t c = rods[r].index();
-        // (tension above the tensile strength, or compression above the compressive strength)
-        if (rodForceScratch_[r] > connectors_.breakLimit[c]) record(rods[r], rodForceScratch_[r], BreakMode::Tension, 0.0);
-        else if (-rodForceScratch_[r] > connectors_.compressionLimit[c])
-          record(rods[r], rodForceScratch_[r], BreakMode::Compression, 0.0);
+      if (overloaded_.empty()) break;
+      const double cut = pass + 1 < kMaxPasses ? std::max(1.0, kCriticalBand * worst) : 0.0;
+      brokenEntries_.clear();
+      for (const Overload& o : overloaded_) {
+        if (o.ratio < cut) continue;
+        brokenEntries_.push_back(o.entry);
+        const std::size_t c = o.connector.index();
+        connectors_.broken[c] = 1;
+        opened_[connectors_.a[c].index()] = opened_[connectors_.b[c].index()] = 1;
+        breakEvents_.push_back({stepIndex_ + 1, o.connector, connectors_.a[c], connectors_.b[c], id, connectors_.kind[c],
+                                o.value, o.mode, o.energy});
+        seeds_.push_back(connectors_.a[c]);
+        seeds_.push_back(connectors_.b[c]);
       }
+      anyBroken = true;
+      std::vector<std::uint32_t> component;
+      const std::size_t parts =
+          connectedComponents(bodies_.info[id.index()].particles, connectors_, bodyConnectors_[id.index()], component);
+      if (parts > 1) splitBody(id, component, parts);  // (retires it; its fragments are judged further down the list)
+      else if (bondLoads_[id.index()]) bondLoads_[id.index()]->remove(brokenEntries_);
+      else buildLattice(id);
     }
-    if (!broke) continue;
-    anyBroken = true;
-    std::vector<std::uint32_t> component;
-    const std::size_t parts =
-        connectedComponents(bodies_.info[id.index()].particles, connectors_, bodyConnectors_[id.index()], component);
-    if (parts > 1) splitBody(id, component, parts);
-    else buildLattice(id);
   }
   // deformable bodies: springs past their strain limit, rods past their strength
   for (const ConnectorId cid : deformableConnectors_) {

@@ -6,6 +6,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -265,6 +268,54 @@ TEST(Bonds, GlueRefusesBodiesThatDoNotTouchAndBodiesWithoutBonds) {
   const auto noModulusBuilt = buildScene(*noModulus);
   ASSERT_FALSE(noModulusBuilt);
   EXPECT_NE(noModulusBuilt.error().message.find("youngs_modulus"), std::string::npos) << noModulusBuilt.error().message;
+}
+
+/// The brick-wall example with its seed replaced by `seed`.
+World brickWall(int seed) {
+  std::ifstream in(test::sourcePath("scenes/examples/brick_wall.yaml"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t at = text.find("\nseed: 1\n");
+  EXPECT_NE(at, std::string::npos);
+  text.replace(at, 9, "\nseed: " + std::to_string(seed) + "\n");
+  return test::worldFromString(text, "examples/brick_wall.yaml");
+}
+
+TEST(Bonds, BrickWallBreaksAlongItsMortarIntoBricks) {
+  World w = brickWall(1);
+  // the glued wall: bricks of 2 x 4 x 2 particles
+  BodyId wall;
+  for (std::size_t i = 0; i < w.bodies().size(); ++i)
+    if (w.bodies().info[i].name == "wall") wall = BodyId(i);
+  ASSERT_TRUE(wall.valid());
+  const std::vector<ParticleId> wallParticles = w.bodies().info[wall.index()].particles;
+  constexpr std::size_t kBrick = 16;
+  ASSERT_EQ(wallParticles.size(), 33 * kBrick);
+  for (int i = 0; i < 750; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);  // the scene's 1.5 s
+  EXPECT_FALSE(w.bodies().info[wall.index()].alive);
+  // at least 80 % of the wall's mass ends in pieces of at least a brick's particle count
+  double mass = 0.0, inBricks = 0.0;
+  std::size_t pieces = 0;
+  for (const ParticleId p : wallParticles) {
+    const BodyInfo& piece = w.bodies().info[w.particles().body[p.index()].index()];
+    mass += w.particles().mass[p.index()];
+    if (piece.particles.size() >= kBrick) inBricks += w.particles().mass[p.index()];
+  }
+  for (const BodyInfo& info : w.bodies().info) pieces += info.alive && info.breakable ? 1 : 0;
+  std::printf("brick wall: %zu pieces, %.1f %% of its mass in pieces of a brick or more\n", pieces, 100.0 * inBricks / mass);
+  EXPECT_GE(inBricks, 0.8 * mass);
+  EXPECT_GE(pieces, 10u);  // it broke
+}
+
+TEST(Bonds, BrickWallRunsTheSameWithTheSameSeedAndDifferentlyWithAnother) {
+  World a = brickWall(1), b = brickWall(1), c = brickWall(2);
+  for (int i = 0; i < 200; ++i) {  // the ball strikes at ~0.09 s (step 45)
+    ASSERT_EQ(a.step(), StepStatus::Ok);
+    ASSERT_EQ(b.step(), StepStatus::Ok);
+    ASSERT_EQ(c.step(), StepStatus::Ok);
+  }
+  EXPECT_TRUE(a.particles().position == b.particles().position);
+  EXPECT_EQ(a.bodies().size(), b.bodies().size());
+  EXPECT_FALSE(a.particles().position == c.particles().position);
 }
 
 }  // namespace

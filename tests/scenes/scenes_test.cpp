@@ -112,7 +112,8 @@ TEST_P(ThreadedStep, GivesBitIdenticalStates) {
 
 INSTANTIATE_TEST_SUITE_P(Scenes, ThreadedStep,
                          ::testing::Values("bench/pile-125.yaml", "examples/wall_break.yaml", "examples/jelly.yaml",
-                                           "examples/peg_in_slot.yaml", "examples/bridge.yaml", "examples/heavy_stacks.yaml"),
+                                           "examples/peg_in_slot.yaml", "examples/bridge.yaml", "examples/heavy_stacks.yaml",
+                                           "examples/brick_wall.yaml"),
                          paramName);
 
 TEST(Determinism, ThreadedRunWritesTheSameTrajectory) {
