@@ -308,7 +308,7 @@ TEST(Bonds, BrickWallBreaksAlongItsMortarIntoBricks) {
 
 TEST(Bonds, BrickWallRunsTheSameWithTheSameSeedAndDifferentlyWithAnother) {
   World a = brickWall(1), b = brickWall(1), c = brickWall(2);
-  for (int i = 0; i < 200; ++i) {  // the ball strikes at ~0.09 s (step 45)
+  for (int i = 0; i < 120; ++i) {  // the ball strikes at ~0.09 s (step 45)
     ASSERT_EQ(a.step(), StepStatus::Ok);
     ASSERT_EQ(b.step(), StepStatus::Ok);
     ASSERT_EQ(c.step(), StepStatus::Ok);

@@ -24,7 +24,7 @@ packages=(
   build-essential cmake ninja-build pkg-config
   libeigen3-dev libfcl-dev libccd-dev libhdf5-dev libyaml-cpp-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev libbullet-dev
-  python3 python3-h5py python3-numpy hdf5-tools
+  python3 python3-h5py python3-numpy python3-yaml python3-matplotlib hdf5-tools
   # the hardening preset: Clang 14 and its runtimes (libFuzzer, AddressSanitizer, UBSan: libclang-rt-14-dev)
   clang libclang-rt-dev
 )
