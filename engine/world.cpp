@@ -167,11 +167,14 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     }
   }
   bodyConnectors_.emplace_back();
-  for (const auto& c : cloud.connectors) {
+  ConnectorParams params = def.connectors;
+  for (std::size_t k = 0; k < cloud.connectors.size(); ++k) {
+    const auto& c = cloud.connectors[k];
     const ParticleId a(first.index() + c[0]);
     const ParticleId b(first.index() + c[1]);
     const double rest = (cloud.positions[c[1]] - cloud.positions[c[0]]).norm();
-    const ConnectorId cid = addConnector(a, b, rest, def.connectors);
+    if (k < cloud.connectorStiffness.size()) params.stiffness = cloud.connectorStiffness[k];
+    const ConnectorId cid = addConnector(a, b, rest, params);
     bodyConnectors_.back().push_back(cid);
     connectorDirection_.resize(connectors_.size(), Vec3::Zero());
     if (def.kind == BodyKind::Deformable) {

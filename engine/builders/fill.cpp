@@ -14,16 +14,19 @@ namespace {
 
 using Index3 = std::array<long, 3>;
 
-/// Site (i, j, k) of a lattice with nearest-neighbour distance s, relative to its anchor.
-/// HCP follows the standard construction with sphere radius s/2:
-/// ((2i + (j + k) mod 2) r, sqrt(3) (j + (k mod 2) / 3) r, (2 sqrt(6) / 3) k r).
-Vec3 siteOffset(Lattice lattice, double s, const Index3& ijk) {
+Vec3 siteOffset(Lattice lattice, double s, const Index3& ijk) { return latticeSite(lattice, s, ijk); }
+
+}  // namespace
+
+Vec3 latticeSite(Lattice lattice, double s, const std::array<long, 3>& ijk) {
   if (lattice == Lattice::Cubic) return Vec3(ijk[0] * s, ijk[1] * s, ijk[2] * s);
   const double r = 0.5 * s;
   const long jk = ((ijk[1] + ijk[2]) % 2 + 2) % 2;
   const long k2 = (ijk[2] % 2 + 2) % 2;
   return Vec3((2.0 * ijk[0] + jk) * r, std::sqrt(3.0) * (ijk[1] + k2 / 3.0) * r, 2.0 * std::sqrt(6.0) / 3.0 * ijk[2] * r);
 }
+
+namespace {
 
 std::string format(double v) {
   std::ostringstream s;

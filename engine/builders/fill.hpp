@@ -34,6 +34,11 @@ struct FillSettings {
   double reach = 1.5;    ///< connect particles closer than reach x spacing [-]
 };
 
+/// Site (i, j, k) of a lattice with nearest-neighbour distance s, relative to its anchor. HCP follows the
+/// standard construction with sphere radius r = s/2: ((2i + (j + k) mod 2) r, sqrt(3) (j + (k mod 2) / 3) r,
+/// (2 sqrt(6) / 3) k r): close-packed layers in the xy plane, a close-packed row along x.
+[[nodiscard]] Vec3 latticeSite(Lattice lattice, double s, const std::array<long, 3>& ijk);
+
 /// Volume of one lattice cell [m^3]: s^3 (cubic), s^3 / sqrt(2) (HCP). Used to estimate particle counts.
 [[nodiscard]] double latticeCellVolume(Lattice lattice, double spacing);
 

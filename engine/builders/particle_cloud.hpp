@@ -30,6 +30,9 @@ struct ParticleCloud {
   /// The exact normals of those features (the first min(features, 3) entries are set), shape frame, [P]
   std::vector<std::array<Vec3, 3>> featureNormals;
   std::vector<std::array<std::uint32_t, 2>> connectors;  ///< joined particle pairs (i < j), ascending
+  /// Stiffness of each connector [N/m] where it is not the body's one (springs calibrated from a modulus,
+  /// elastic_calibration.hpp), or empty
+  std::vector<double> connectorStiffness;
   std::vector<std::uint8_t> pinned;  ///< 1 for particles held fixed in space (deformable bodies), [P] or empty
   double spacing = 0.0;           ///< lattice spacing [m]; 0 for explicit particle lists
 

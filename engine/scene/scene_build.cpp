@@ -12,6 +12,7 @@
 #include <numbers>
 #include <sstream>
 
+#include "engine/builders/elastic_calibration.hpp"
 #include "engine/builders/obj_reader.hpp"
 
 namespace volpar {
@@ -326,6 +327,22 @@ Result<BuiltScene> buildScene(const SceneDesc& desc, const BuildOptions& options
           }
         if (held == 0) return at(desc, b.pinMarks[k], "this pin box holds no particle of the body (in its shape frame)");
       }
+    }
+    if (b.connectors.kind == ConnectorKind::Spring && !(b.connectors.stiffness > 0.0)) {
+      // springs given by the material's modulus: calibrated for the lattice
+      const Material& mat = desc.materials.at(b.material);
+      if (std::holds_alternative<ParticlesDesc>(b.shape))
+        return at(desc, b.mark, "body '" + b.name + "': springs of an explicit particle list need a 'stiffness' [N/m] (there is no lattice to calibrate them for)");
+      if (!(mat.youngsModulus > 0.0))
+        return at(desc, b.mark, "body '" + b.name + "': springs need a 'stiffness' [N/m], or their material's 'youngs_modulus' [Pa] (material '" + b.material + "')");
+      const double spacing = cloud->spacing;
+      const SpringCalibration springs = calibrateSprings(b.fill.lattice, spacing, b.fill.reach, mat.youngsModulus, mat.poissonRatio);
+      if (!(springs.nearest > 0.0) || !std::isfinite(springs.nearest))
+        return at(desc, b.mark, "body '" + b.name + "': its lattice and reach cannot be calibrated for a Young's modulus (give the springs a 'stiffness')");
+      cloud->connectorStiffness = calibratedStiffness(*cloud, springs, b.fill.lattice, spacing, b.fill.reach);
+      if (std::abs(springs.poissonRatio - mat.poissonRatio) > 1e-3)
+        built.notes.push_back("body '" + b.name + "': its lattice of springs has Poisson's ratio " + format(springs.poissonRatio) +
+                              ", the nearest it reaches to the material's " + format(mat.poissonRatio));
     }
     if (const auto* mesh = std::get_if<MeshDesc>(&b.shape)) built.meshFiles.push_back(mesh->path);
     if (auto note = latticeFitNote(b.name, *cloud)) built.notes.push_back(std::move(*note));

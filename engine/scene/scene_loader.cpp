@@ -563,7 +563,8 @@ ConnectorParams connectors(const Ctx& ctx, const YAML::Node& n, BodyKind kind) {
     ctx.fail(m.keyMark("springs"), "springs need 'kind: deformable'; rigid and static bodies are joined by rods");
   const MapReader sm(ctx, m.get("springs"), "springs", {"stiffness", "damping", "strain_limit"});
   c.kind = ConnectorKind::Spring;
-  c.stiffness = positive(ctx, sm.require("stiffness"), "spring stiffness", "N/m");
+  // without a stiffness, the springs are calibrated from the material's Young's modulus (scene_build.cpp)
+  if (sm.has("stiffness")) c.stiffness = positive(ctx, sm.get("stiffness"), "spring stiffness", "N/m");
   if (sm.has("damping")) c.damping = nonNegative(ctx, sm.get("damping"), "spring damping", "N s/m");
   if (sm.has("strain_limit")) c.breakLimit = positive(ctx, sm.get("strain_limit"), "spring strain limit", "-");
   return c;

@@ -148,6 +148,29 @@ std::vector<Case> cases() {
                    "smooth", "unknown normals 'smooth'; expected one of: shape, estimated"));
   c.push_back(make("normals not a name", "dt: 0.01\nsteps: 1\nnormals: [shape]\nbodies:\n  - name: a\n" + kBox,
                    "[shape]", "expected a string for normals, got a list"));
+  c.push_back(make("springs with neither stiffness nor modulus",
+                   "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n    kind: deformable\n    connectors: {springs: {}}\n" + kBox,
+                   "name: a", "springs need a 'stiffness' [N/m], or their material's 'youngs_modulus' [Pa]"));
+  c.push_back(make("bonds on a deformable body",
+                   "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n    kind: deformable\n    connectors: bonds\n" + kBox, "bonds\n",
+                   "bonds join the particles of rigid bodies"));
+  c.push_back(make("bonds without a modulus", "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n    connectors: bonds\n" + kBox,
+                   "name: a", "bonds need their material's Young's modulus"));
+  c.push_back(make("Poisson's ratio of a half",
+                   "dt: 0.01\nsteps: 1\nmaterials:\n  jelly: {poisson_ratio: 0.5}\nbodies:\n  - name: a\n" + kBox, "0.5}",
+                   "expected a Poisson's ratio in (-1, 0.5)"));
+  c.push_back(make("bond radius above one",
+                   "dt: 0.01\nsteps: 1\nmaterials:\n  rock: {youngs_modulus: 1.0e9}\nbodies:\n  - name: a\n    material: rock\n"
+                   "    connectors: {bonds: {radius: 1.5}}\n" + kBox, "1.5}",
+                   "expected a bond radius in (0, 1]"));
+  c.push_back(make("glue naming no body",
+                   "dt: 0.01\nsteps: 1\nmaterials:\n  rock: {youngs_modulus: 1.0e9}\nbodies:\n  - name: a\n    material: rock\n"
+                   "    connectors: bonds\n" + kBox + "glue:\n  - {bodies: [a, b], material: rock}\n", "b]",
+                   "glue 'glued0': no body named 'b'"));
+  c.push_back(make("glue with bodies and pairs",
+                   "dt: 0.01\nsteps: 1\nbodies:\n  - name: a\n" + kBox + "glue:\n  - {bodies: [a], pairs: [[a, a]]}\n", "{bodies",
+                   "expected exactly one of 'bodies' (all their touching pairs) or 'pairs' in glue"));
+  c.push_back(make("seed negative", "dt: 0.01\nsteps: 1\nseed: -1\nbodies:\n  - name: a\n" + kBox, "-1", "seed"));
   c.push_back(make("empty scene", "", "", "the scene is empty"));
   c.push_back(make("bodies not a list", "dt: 0.01\nsteps: 1\nbodies: {a: 1}\n", "{a: 1}", "expected a non-empty list of bodies"));
   return c;
