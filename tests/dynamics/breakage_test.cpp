@@ -181,6 +181,20 @@ TEST(Breakage, BeamHoldsItsOwnWeightAndSnapsUnderTheDroppedLoad) {
   EXPECT_GE(fragments, 2u);
 }
 
+TEST(Breakage, CantileverBreaksAtItsRootUnderALoadNearItsEnd) {
+  World w = sceneFile("scenes/examples/cantilever.yaml");
+  int i = 0;
+  for (; i < 200 && w.breakEvents().empty(); ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
+  ASSERT_FALSE(w.breakEvents().empty());
+  // the block's face is at x = 0 and the beam reaches to x = 0.8 m: every bond that breaks first is at the
+  // root (within two of the beam's 0.05 m spacings of the face)
+  for (const BreakEvent& e : w.breakEvents()) {
+    const double x = 0.5 * (w.particles().position[e.a.index()].x() + w.particles().position[e.b.index()].x());
+    EXPECT_LE(x, 0.11) << "a bond broke at x = " << x;
+  }
+  std::printf("cantilever: %zu bonds broke at step %lld\n", w.breakEvents().size(), static_cast<long long>(w.breakEvents()[0].step));
+}
+
 TEST(Breakage, PlateStruckAtItsCentreCracksRadially) {
   World w = sceneFile("scenes/examples/plate_impact.yaml");
   BodyId plate;
