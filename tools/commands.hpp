@@ -35,6 +35,7 @@ struct RunArgs {
   int every = 0;             ///< 0: the scene's
   bool json = false;
   int threads = 1;
+  std::int64_t seed = -1;    ///< -1: the scene's
   std::int64_t killAfterFrames = 0;
   SceneLimits limits;
 };

@@ -59,6 +59,7 @@ std::optional<Error> refuseOverwrite(const std::string& output, const std::strin
 int run(const RunArgs& args) {
   auto desc = loadScene(args.scene, args.limits.load());
   if (!desc) return fail(desc.error());
+  if (args.seed >= 0) desc->seed = static_cast<std::uint64_t>(args.seed);
   auto built = buildScene(*desc, args.limits.build());
   if (!built) return fail(built.error());
   World& world = built->world;

@@ -65,6 +65,8 @@ int main(int argc, char** argv) {
       ->excludes(steps);
   runCmd->add_option("--every", run.every, "Write a frame every K steps (overrides the scene)")
       ->check(wholeNumber(1, 2147483647));
+  runCmd->add_option("--seed", run.seed, "Seed of what is drawn at random, bond strengths (overrides the scene's 'seed')")
+      ->check(wholeNumber(0, 9007199254740992));
   runCmd->add_flag("--json", run.json, "Print one JSON object with the summary on stdout");
   runCmd->add_option("--threads", run.threads, "Worker threads for the step (default 1; the results are the same)")
       ->check(wholeNumber(1, 256));

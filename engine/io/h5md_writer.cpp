@@ -715,6 +715,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       attrScalar<std::int32_t>(par.get(), "substeps", s.substeps);
       attrScalar<std::int32_t>(par.get(), "output_every", meta.outputEvery);
       attrScalar<std::int64_t>(par.get(), "steps_requested", meta.stepsRequested);
+      attrScalar<std::int64_t>(par.get(), "seed", static_cast<std::int64_t>(world.settings().seed));
       attrScalar<std::int64_t>(par.get(), "frames_complete", 0);
       impl->framesComplete = checked(H5Aopen(par.get(), "frames_complete", H5P_DEFAULT), H5Aclose, "attribute frames_complete");
       // planes: normal (3) and offset per row

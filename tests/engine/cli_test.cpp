@@ -57,6 +57,27 @@ TEST(Cli, OverridesStepsAndCadence) {
   EXPECT_NE(both.output.find("excludes"), std::string::npos) << both.output;
 }
 
+TEST(Cli, SeedOverridesTheScenesAndIsRecorded) {
+  // the plate's bonds have Weibull strengths drawn with the seed (the scene's is 1)
+  const std::string dir = test::tempDir();
+  const std::string scene = test::sourcePath("scenes/examples/plate_impact.yaml");
+  auto broken = [&](const std::string& extra, const std::string& name) {
+    const auto r = test::runCommand(test::volparBinary() + " run " + scene + " --steps 150 --json -o " + dir + "/" + name + extra);
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    const std::size_t at = r.output.find("\"connectors_broken\": ");
+    EXPECT_NE(at, std::string::npos) << r.output;
+    return at == std::string::npos ? -1L : std::stol(r.output.substr(at + 21));
+  };
+  const long scene1 = broken("", "a.h5"), seed1 = broken(" --seed 1", "b.h5"), seed2 = broken(" --seed 2", "c.h5");
+  EXPECT_GT(scene1, 0);
+  EXPECT_EQ(seed1, scene1);
+  EXPECT_NE(seed2, scene1);
+  const auto h5 = test::runCommand("h5dump -a /parameters/seed " + dir + "/c.h5");
+  EXPECT_NE(h5.output.find("(0): 2"), std::string::npos) << h5.output;
+  const auto bad = test::runCommand(test::volparBinary() + " run " + scene + " --seed -3 --no-output");
+  EXPECT_EQ(bad.exitCode, 1) << bad.output;
+}
+
 TEST(Cli, ThreadsAreReportedAndOutOfRangeCountsRejected) {
   const std::string dir = test::tempDir();
   const std::string scene = writeFile(dir + "/fall.yaml", kFall);

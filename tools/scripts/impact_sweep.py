@@ -2,7 +2,7 @@
 """Fragment statistics of a scene struck at several speeds (docs/fracture.md).
 
 Runs SCENE once per speed and seed, with the projectile body's velocity scaled to that speed (its direction
-kept) and the scene's seed replaced, and reads the fragments of the last frame of each run from its
+kept) and `volpar run --seed`, and reads the fragments of the last frame of each run from its
 trajectory (/observables/fragment_sizes, fragment_mass, breakage_energy). Prints a table; with --plot, draws
 the fragment count against the impact energy and the distribution of fragment sizes at each speed; with
 --check, exits 1 unless the mean number of fragments grows with every step up in speed.
@@ -27,7 +27,6 @@ def run(volpar, scene, projectile, speed, seed, work):
     """One run: (impact energy [J], fragments, single-particle fragments, sizes [32], mass [32], breakage energy)."""
     with open(scene) as f:
         desc = yaml.safe_load(f)
-    desc["seed"] = seed
     bodies = [b for b in desc["bodies"] if b.get("name") == projectile]
     if len(bodies) != 1:
         raise SystemExit("impact_sweep: the scene has no body named %s" % projectile)
@@ -39,10 +38,13 @@ def run(volpar, scene, projectile, speed, seed, work):
     with open(path, "w") as f:
         yaml.safe_dump(desc, f)
     out = os.path.join(work, "sweep.h5")
-    r = subprocess.run([volpar, "run", path, "-o", out, "--every", "100000"], capture_output=True, text=True)
+    r = subprocess.run([volpar, "run", path, "-o", out, "--every", "100000", "--seed", str(seed)], capture_output=True,
+                       text=True)
     if r.returncode != 0:
         raise SystemExit("impact_sweep: volpar run failed: %s" % (r.stdout + r.stderr))
     with h5py.File(out, "r") as f:
+        if f["parameters"].attrs["seed"] != seed:
+            raise SystemExit("impact_sweep: the run did not record seed %d" % seed)
         names = [n.decode() for n in f["particles/bodies/name"][()]]
         mass = f["particles/bodies/mass"][()][names.index(projectile)]
         obs = f["observables"]
