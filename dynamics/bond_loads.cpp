@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "dynamics/breakage.hpp"
+
 namespace volpar {
 
 namespace {
@@ -69,13 +71,24 @@ Eigen::Matrix<double, 12, 12> beamStiffness(const Vec3& e, double length, double
   return b.transpose() * dm * b;
 }
 
+/// Calls f(row, column, value) for each entry of a beam's stiffness in the frame's matrix, its two ends'
+/// six freedoms each (zeros too: the pattern keeps them, so that removing the beam changes values only).
+template <class F>
+void forEachEntry(std::uint32_t a, std::uint32_t b, const Eigen::Matrix<double, 12, 12>& ke, F&& f) {
+  const std::uint32_t node[2] = {a, b};
+  for (int bi = 0; bi < 2; ++bi)
+    for (int bj = 0; bj < 2; ++bj)
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 6; ++j)
+          f(static_cast<Eigen::Index>(6 * node[bi]) + i, static_cast<Eigen::Index>(6 * node[bj]) + j, ke(6 * bi + i, 6 * bj + j));
+}
+
 }  // namespace
 
 bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const ConnectorStore& c,
                       std::span<const ConnectorId> bonds) {
   bonds_.assign(bonds.begin(), bonds.end());
   beams_.clear();
-  factorisations_ = 0;
   stale_ = false;
   if (bonds_.empty()) return false;
   const std::size_t n = body.particles.size();
@@ -101,17 +114,11 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
     beam.torsion = shearModulus * 2.0 * inertia / beam.length;
     beam.bending = e * inertia / beam.length;
     beams_.push_back(beam);
-    // every entry of the element's blocks is kept in the pattern (zeros too), so that removing beams later
-    // changes values only
-    const Eigen::Matrix<double, 12, 12> ke = beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending);
-    const std::uint32_t node[2] = {beam.a, beam.b};
-    for (int bi = 0; bi < 2; ++bi)
-      for (int bj = 0; bj < 2; ++bj)
-        for (int i = 0; i < 6; ++i)
-          for (int j = 0; j < 6; ++j)
-            t.emplace_back(static_cast<int>(6 * node[bi]) + i, static_cast<int>(6 * node[bj]) + j, ke(6 * bi + i, 6 * bj + j));
-    for (int bi = 0; bi < 2; ++bi)
-      for (int i = 0; i < 6; ++i) diag[6 * node[bi] + i] += ke(6 * bi + i, 6 * bi + i);
+    forEachEntry(beam.a, beam.b, beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending),
+                 [&](Eigen::Index row, Eigen::Index col, double v) {
+                   t.emplace_back(static_cast<int>(row), static_cast<int>(col), v);
+                   if (row == col) diag[row] += v;
+                 });
   }
   // the six rigid-body modes make K singular; a tiny regularisation (per kind of freedom, which differ in
   // units) picks the solution without rigid motion and leaves a self-equilibrated load's deformations as they are
@@ -134,26 +141,16 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
 
 bool BondLoads::factorise() {
   ldlt_.factorize(k_);
-  ++factorisations_;
   stale_ = false;
   return ldlt_.info() == Eigen::Success;
 }
 
-void BondLoads::assemble(const Beam& beam, double sign) {
-  const Eigen::Matrix<double, 12, 12> ke = beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending);
-  const std::uint32_t node[2] = {beam.a, beam.b};
-  for (int bi = 0; bi < 2; ++bi)
-    for (int bj = 0; bj < 2; ++bj)
-      for (int i = 0; i < 6; ++i)
-        for (int j = 0; j < 6; ++j)
-          k_.coeffRef(static_cast<Eigen::Index>(6 * node[bi]) + i, static_cast<Eigen::Index>(6 * node[bj]) + j) +=
-              sign * ke(6 * bi + i, 6 * bj + j);
-}
-
 void BondLoads::remove(std::span<const std::size_t> entries) {
   for (const std::size_t k : entries) {
-    if (!beams_[k].active) continue;
-    assemble(beams_[k], -1.0);
+    const Beam& beam = beams_[k];
+    if (!beam.active) continue;
+    forEachEntry(beam.a, beam.b, beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending),
+                 [&](Eigen::Index row, Eigen::Index col, double v) { k_.coeffRef(row, col) -= v; });
     beams_[k].active = false;
     stale_ = true;
   }
@@ -163,23 +160,14 @@ void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleSt
                       std::vector<BondLoad>& out) {
   const std::size_t n = body.particles.size();
   const Mat3 r = s.orientation.toRotationMatrix();
-  // the rigid motion the loads cause: a = F / M, alpha = I^-1 (tau - w x I w)
-  Vec3 force = Vec3::Zero(), torque = Vec3::Zero();
-  for (const ParticleId q : body.particles) {
-    force += loads[q.index()];
-    torque += (p.position[q.index()] - s.position).cross(loads[q.index()]);
-  }
-  const Vec3 a = force * s.invMass;
-  const Mat3 inertiaWorld = r * body.inertiaLocal.asDiagonal() * r.transpose();
-  const Vec3 alpha = s.invInertiaWorld * (torque - s.angularVelocity.cross(inertiaWorld * s.angularVelocity));
-  const Vec3 alphaLocal = r.transpose() * alpha;
+  const RigidAcceleration motion = rigidAcceleration(s, body, p, loads);
+  const Vec3 alphaLocal = r.transpose() * motion.angular;
   const Vec3 residualMoment = body.inertiaResidual * alphaLocal;  // shared by mass
   // self-equilibrated loads in the body frame: forces on the particles less their d'Alembert forces, and
   // the d'Alembert moments of what each particle adds to the body's inertia beyond its point mass
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t q = body.particles[i].index();
-    const Vec3 arm = p.position[q] - s.position;
-    const Vec3 inertial = p.mass[q] * (a + alpha.cross(arm) + s.angularVelocity.cross(s.angularVelocity.cross(arm)));
+    const Vec3 inertial = motion.inertialForce(s, p.mass[q], p.position[q] - s.position);
     f_.segment<3>(static_cast<Eigen::Index>(6 * i)) = r.transpose() * (loads[q] - inertial);
     f_.segment<3>(static_cast<Eigen::Index>(6 * i + 3)) =
         -(p.ownInertia[q] * alphaLocal + (p.mass[q] / body.mass) * residualMoment);

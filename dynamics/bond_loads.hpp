@@ -71,8 +71,6 @@ class BondLoads {
   void remove(std::span<const std::size_t> entries);
 
   [[nodiscard]] std::span<const ConnectorId> bonds() const { return bonds_; }
-  /// Factorisations done since build() (the first included), for tests and statistics.
-  [[nodiscard]] std::size_t factorisations() const { return factorisations_; }
 
  private:
   struct Beam {
@@ -82,8 +80,6 @@ class BondLoads {
     double axial = 0.0, torsion = 0.0, bending = 0.0;  // E A / L, G J / L, E I / L
     bool active = true;
   };
-  /// Adds `sign` times the beam's stiffness to k_.
-  void assemble(const Beam& beam, double sign);
   bool factorise();
 
   std::vector<ConnectorId> bonds_;
@@ -92,7 +88,6 @@ class BondLoads {
   Eigen::SparseMatrix<double> k_;     // the frame's stiffness now
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;  // of k_ when it was last factorised
   bool stale_ = false;                // k_ changed since
-  std::size_t factorisations_ = 0;
   Eigen::VectorXd f_, u_, r_, z_, p_, q_;
 };
 

@@ -52,26 +52,28 @@ bool RodForces::build(const BodyInfo& body, const ParticleStore& p, const Connec
   return ldlt_.info() == Eigen::Success;
 }
 
-void RodForces::solve(const BodyState& s, const BodyInfo& body, const ParticleStore& p, std::span<const Vec3> loads,
-                      std::vector<double>& forces) {
-  const std::size_t n = body.particles.size();
-  const Mat3 r = s.orientation.toRotationMatrix();
-  // the rigid motion the loads cause: a = F / M, alpha = I^-1 (tau - w x I w)
+RigidAcceleration rigidAcceleration(const BodyState& s, const BodyInfo& body, const ParticleStore& p,
+                                    std::span<const Vec3> loads) {
   Vec3 force = Vec3::Zero(), torque = Vec3::Zero();
   for (const ParticleId q : body.particles) {
     const Vec3 arm = p.position[q.index()] - s.position;
     force += loads[q.index()];
     torque += arm.cross(loads[q.index()]);
   }
-  const Vec3 a = force * s.invMass;
+  const Mat3 r = s.orientation.toRotationMatrix();
   const Mat3 inertiaWorld = r * body.inertiaLocal.asDiagonal() * r.transpose();
-  const Vec3 alpha = s.invInertiaWorld * (torque - s.angularVelocity.cross(inertiaWorld * s.angularVelocity));
+  return {force * s.invMass, s.invInertiaWorld * (torque - s.angularVelocity.cross(inertiaWorld * s.angularVelocity))};
+}
+
+void RodForces::solve(const BodyState& s, const BodyInfo& body, const ParticleStore& p, std::span<const Vec3> loads,
+                      std::vector<double>& forces) {
+  const std::size_t n = body.particles.size();
+  const Mat3 r = s.orientation.toRotationMatrix();
+  const RigidAcceleration motion = rigidAcceleration(s, body, p, loads);
   // self-equilibrated loads in the body frame
   for (std::size_t i = 0; i < n; ++i) {
     const ParticleId q = body.particles[i];
-    const Vec3 arm = p.position[q.index()] - s.position;
-    const Vec3 inertial =
-        p.mass[q.index()] * (a + alpha.cross(arm) + s.angularVelocity.cross(s.angularVelocity.cross(arm)));
+    const Vec3 inertial = motion.inertialForce(s, p.mass[q.index()], p.position[q.index()] - s.position);
     f_.segment<3>(static_cast<Eigen::Index>(3 * i)) = r.transpose() * (loads[q.index()] - inertial);
   }
   u_ = ldlt_.solve(f_);

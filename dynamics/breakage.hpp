@@ -21,6 +21,21 @@
 
 namespace volpar {
 
+/// The rigid motion that world loads [N] on a body's particles (indexed by particle id) give it over a step
+/// in state `s`: a = F / M and alpha = I^-1 (tau - w x I w), world frame. A particle's share of it, its
+/// d'Alembert force, is m (a + alpha x r + w x (w x r)) (inertialForce); the loads less these are
+/// self-equilibrated.
+struct RigidAcceleration {
+  Vec3 linear = Vec3::Zero();
+  Vec3 angular = Vec3::Zero();
+
+  [[nodiscard]] Vec3 inertialForce(const BodyState& s, double mass, const Vec3& arm) const {
+    return mass * (linear + angular.cross(arm) + s.angularVelocity.cross(s.angularVelocity.cross(arm)));
+  }
+};
+[[nodiscard]] RigidAcceleration rigidAcceleration(const BodyState& s, const BodyInfo& body, const ParticleStore& particles,
+                                                  std::span<const Vec3> loads);
+
 class RodForces {
  public:
   /// Builds the lattice of one rigid body from its unbroken `rods` (body frame). Returns false if the body

@@ -192,6 +192,15 @@ class World {
   void integratePositions();
   void applyBreakage();
   void splitBody(BodyId parent, std::span<const std::uint32_t> component, std::size_t components);
+  /// Moves `ids` into body `id`, whose principal frame has its origin at `centre` and axes `axes` (world),
+  /// turning each cached normal from its old body's frame to the new one's.
+  void moveParticles(std::span<const ParticleId> ids, BodyId id, const Vec3& centre, const Quat& axes);
+  /// Adds a rigid body whose particles were moved into it (moveParticles), with its connectors, and makes it
+  /// take part: broadphase, contacts, breakage.
+  BodyId addRigidBody(const BodyState& state, BodyInfo info, std::vector<ConnectorId> connectors);
+  /// Retires a rigid body at `step` (it broke apart or was glued): it keeps its id and history, but no
+  /// particles, motion or lattice.
+  void retireBody(BodyId id, std::int64_t step);
   /// Adds a connector; a bond gets its radius from its particles' and its strengths drawn (Weibull) from the
   /// seed and its index.
   ConnectorId addConnector(ParticleId a, ParticleId b, double rest, const ConnectorParams& params);

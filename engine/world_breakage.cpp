@@ -39,6 +39,8 @@ ConnectorId World::addConnector(ParticleId a, ParticleId b, double rest, const C
 }
 
 void World::buildLattice(BodyId id) {
+  // (a body with a lattice is on breakableRigid_, one without is not, until applyBreakage drops the former)
+  const bool listed = breakable(id);
   rodForces_[id.index()].reset();
   bondLoads_[id.index()].reset();
   std::vector<ConnectorId> intact;
@@ -52,7 +54,6 @@ void World::buildLattice(BodyId id) {
                std::isfinite(connectors_.tensileStrength[k]) || std::isfinite(connectors_.shearStrength[k]);
   }
   if (!canBreak || intact.empty()) return;  // (applyBreakage drops it from breakableRigid_)
-  const bool listed = std::find(breakableRigid_.begin(), breakableRigid_.end(), id) != breakableRigid_.end();
   if (bonds) {
     bondLoads_[id.index()] = std::make_unique<BondLoads>();
     bondLoads_[id.index()]->build(bodies_.info[id.index()], particles_, connectors_, intact);
@@ -276,47 +277,62 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
     state.invMass = 1.0 / mp.mass;
     state.invInertiaLocal = axes.moments.cwiseInverse();
     updateWorldInertia(state);
-    const Quat toLocal = axes.rotation.conjugate();
-    for (const ParticleId q : ids) {
-      const std::size_t i = q.index();
-      particles_.body[i] = id;
-      particles_.local[i] = toLocal * (particles_.position[i] - mp.centre);
-      const std::int32_t k = particles_.normalIndex[i];
-      if (k >= 0) {
-        // the cached normal (and its faces) from the parent's frame to the fragment's, in place
-        std::array<Vec3, 3> faces{};
-        const std::span<const Vec3> old = normals_.faces(k);
-        for (std::size_t f = 0; f < old.size(); ++f) faces[f] = toLocal * (parentState.orientation * old[f]);
-        normals_.set(k, toLocal * (parentState.orientation * normals_[k]), std::span<const Vec3>(faces.data(), old.size()));
-      }
-    }
-    bodies_.add(state, std::move(info));
-    bodyBoxes_.emplace_back();
-    rodForces_.emplace_back();
-    bondLoads_.emplace_back();
-    bodyConnectors_.emplace_back();
+    moveParticles(ids, id, mp.centre, axes.rotation);
     std::vector<std::uint8_t> inPart(particles_.size(), 0);
     for (const ParticleId q : ids) inPart[q.index()] = 1;
+    std::vector<ConnectorId> connectors;
     for (const ConnectorId c : parentConnectors)
-      if (inPart[connectors_.a[c.index()].index()] && inPart[connectors_.b[c.index()].index()]) bodyConnectors_.back().push_back(c);
-    rigidBodies_.push_back(id);
-    updateRigidParticles(id);
-    broadphase_.addBody(id, bodyBoxes_[id.index()], false);
-    contactFinder_.addBody(id, particles_, bodies_);
-    buildLattice(id);
+      if (inPart[connectors_.a[c.index()].index()] && inPart[connectors_.b[c.index()].index()]) connectors.push_back(c);
+    addRigidBody(state, std::move(info), std::move(connectors));
     bodies_.info[id.index()].breakable = true;  // (a fragment, whether or not it can break further)
     ++stats_.bodiesCreated;
   }
-  // the parent is retired: it keeps its id and history but no particles
-  BodyInfo& retired = bodies_.info[parentId.index()];
+  retireBody(parentId, stepIndex_ + 1);
+}
+
+void World::moveParticles(std::span<const ParticleId> ids, BodyId id, const Vec3& centre, const Quat& axes) {
+  const Quat toLocal = axes.conjugate();
+  for (const ParticleId q : ids) {
+    const std::size_t i = q.index();
+    const Quat from = bodies_.state[particles_.body[i].index()].orientation;
+    particles_.body[i] = id;
+    particles_.local[i] = toLocal * (particles_.position[i] - centre);
+    const std::int32_t k = particles_.normalIndex[i];
+    if (k >= 0) {
+      // the cached normal (and its faces) from the old body's frame to the new one's, in place
+      std::array<Vec3, 3> faces{};
+      const std::span<const Vec3> old = normals_.faces(k);
+      for (std::size_t f = 0; f < old.size(); ++f) faces[f] = toLocal * (from * old[f]);
+      normals_.set(k, toLocal * (from * normals_[k]), std::span<const Vec3>(faces.data(), old.size()));
+    }
+  }
+}
+
+BodyId World::addRigidBody(const BodyState& state, BodyInfo info, std::vector<ConnectorId> connectors) {
+  const BodyId id = bodies_.add(state, std::move(info));
+  bodyBoxes_.emplace_back();
+  rodForces_.emplace_back();
+  bondLoads_.emplace_back();
+  bodyConnectors_.push_back(std::move(connectors));
+  rigidBodies_.push_back(id);
+  updateRigidParticles(id);
+  broadphase_.addBody(id, bodyBoxes_[id.index()], false);
+  contactFinder_.addBody(id, particles_, bodies_);
+  buildLattice(id);
+  contactsStale_ = true;
+  return id;
+}
+
+void World::retireBody(BodyId id, std::int64_t step) {
+  BodyInfo& retired = bodies_.info[id.index()];
   retired.alive = false;
-  retired.retiredStep = stepIndex_ + 1;
+  retired.retiredStep = step;
   retired.particles.clear();
-  bodies_.state[parentId.index()].invMass = 0.0;
-  broadphase_.removeBody(parentId);
-  rodForces_[parentId.index()].reset();
-  bondLoads_[parentId.index()].reset();
-  rigidBodies_.erase(std::find(rigidBodies_.begin(), rigidBodies_.end(), parentId));
+  bodies_.state[id.index()].invMass = 0.0;
+  broadphase_.removeBody(id);
+  rodForces_[id.index()].reset();
+  bondLoads_[id.index()].reset();
+  rigidBodies_.erase(std::find(rigidBodies_.begin(), rigidBodies_.end(), id));
   contactsStale_ = true;
 }
 
@@ -451,55 +467,21 @@ Result<BodyId> World::glue(std::span<const BodyId> parts, const GlueDef& def) {
   // the parts' momentum and angular momentum, kept
   state.linearVelocity = momentum / mp.mass;
   state.angularVelocity = state.invInertiaWorld * (moment - mp.centre.cross(momentum));
-  const Quat toLocal = axes.rotation.conjugate();
-  for (const ParticleId q : all) {
-    const std::size_t i = q.index();
-    const Quat partOrientation = bodies_.state[particles_.body[i].index()].orientation;
-    particles_.body[i] = id;
-    particles_.local[i] = toLocal * (particles_.position[i] - mp.centre);
-    const std::int32_t k = particles_.normalIndex[i];
-    if (k >= 0) {
-      // the cached normal (and its faces) from the part's frame to the glued body's
-      std::array<Vec3, 3> faces{};
-      const std::span<const Vec3> old = normals_.faces(k);
-      for (std::size_t f = 0; f < old.size(); ++f) faces[f] = toLocal * (partOrientation * old[f]);
-      normals_.set(k, toLocal * (partOrientation * normals_[k]), std::span<const Vec3>(faces.data(), old.size()));
-    }
-  }
-  bodies_.add(state, std::move(info));
-  bodyBoxes_.emplace_back();
-  rodForces_.emplace_back();
-  bondLoads_.emplace_back();
-  bodyConnectors_.emplace_back();
-  for (const BodyId p : parts)
-    bodyConnectors_.back().insert(bodyConnectors_.back().end(), bodyConnectors_[p.index()].begin(), bodyConnectors_[p.index()].end());
+  moveParticles(all, id, mp.centre, axes.rotation);
+  std::vector<ConnectorId> connectors;
+  for (const BodyId p : parts) connectors.insert(connectors.end(), bodyConnectors_[p.index()].begin(), bodyConnectors_[p.index()].end());
   for (const auto& [a, b] : joints)
-    bodyConnectors_.back().push_back(
-        addConnector(a, b, (particles_.position[b.index()] - particles_.position[a.index()]).norm(), def.bonds));
+    connectors.push_back(addConnector(a, b, (particles_.position[b.index()] - particles_.position[a.index()]).norm(), def.bonds));
   connectorDirection_.resize(connectors_.size(), Vec3::Zero());
   // the parts are retired before any frame (their rows keep their names; created = retired = now)
   for (const BodyId p : parts) {
-    BodyInfo& retired = bodies_.info[p.index()];
-    retired.alive = false;
-    retired.retiredStep = stepIndex_;
-    retired.gluedInto = id;
-    retired.particles.clear();
-    bodies_.state[p.index()].invMass = 0.0;
-    broadphase_.removeBody(p);
-    rodForces_[p.index()].reset();
-    bondLoads_[p.index()].reset();
-    rigidBodies_.erase(std::find(rigidBodies_.begin(), rigidBodies_.end(), p));
+    retireBody(p, stepIndex_);
+    bodies_.info[p.index()].gluedInto = id;
   }
   breakableRigid_.erase(std::remove_if(breakableRigid_.begin(), breakableRigid_.end(),
                                        [&](BodyId b) { return !bodies_.info[b.index()].alive; }),
                         breakableRigid_.end());
-  rigidBodies_.push_back(id);
-  updateRigidParticles(id);
-  broadphase_.addBody(id, bodyBoxes_[id.index()], false);
-  contactFinder_.addBody(id, particles_, bodies_);
-  buildLattice(id);
-  contactsStale_ = true;
-  return id;
+  return addRigidBody(state, std::move(info), std::move(connectors));
 }
 
 FragmentHistogram World::fragments() const {

@@ -111,6 +111,7 @@ std::vector<double> calibratedStiffness(const ParticleCloud& cloud, const Spring
     own[a] += w;
     own[b] += w;
   }
+  const double cell = latticeCellVolume(lattice, spacing);
   std::vector<double> out;
   out.reserve(cloud.connectors.size());
   for (const auto& [a, b] : cloud.connectors) {
@@ -124,7 +125,6 @@ std::vector<double> calibratedStiffness(const ParticleCloud& cloud, const Spring
     // a particle that stands for more volume than a lattice cell (a shape the lattice does not fill to its
     // faces) is stiffer in proportion, so that the particles carry the whole solid's load at its modulus (and
     // waves run at sqrt(E / rho) with its mass)
-    const double cell = latticeCellVolume(lattice, spacing);
     const double share = cloud.volumes.empty() ? 1.0 : 0.5 * (cloud.volumes[a] + cloud.volumes[b]) / cell;
     out.push_back(stiffness(d) * scale * share);
   }
