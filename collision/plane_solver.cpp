@@ -12,6 +12,8 @@ namespace {
 
 constexpr double kFacing = 0.05;      // a neighbour's normal faces the other side: n . d above this
 constexpr double kCapLean = 0.2;      // a normal leaning along a cylinder's axis by more than this is on its cap
+constexpr double kFaceReach = 8.0;    // x radius: how far along a face its outermost centre is searched
+constexpr std::size_t kFaceVisits = 64;  // most particles of a face searched for its outermost centre
 constexpr int kFitRings = 3;          // rings of neighbours a curved core's fit reaches
 constexpr double kFan = 0.94;        // cos 20 degrees: faces closer than this beside each other are a curved surface's
 constexpr double kFlat = 0.99985;     // cos 1 degree: the normals of a flat side agree within this
@@ -326,28 +328,57 @@ bool PlaneSolver::exactFeature(const Side& side, const HullDistance& h, bool isA
 
 double PlaneSolver::faceSupport(const NarrowPhaseInput& in, const Vec3& f, ParticleId from) {
   const ParticleStore& p = *in.particles;
+  // (the face normal in the frame of the body's cached normals; a face does not leave its body)
+  const BodyId body = p.body[from.index()];
+  const Vec3 fb = in.bodies->state[body.index()].orientation.conjugate() * f;
   const auto carries = [&](ParticleId q) {
     const std::int32_t k = p.normalIndex[q.index()];
-    if (k < 0) return false;
-    const Quat& r = in.bodies->state[p.body[q.index()].index()].orientation;
-    if (Vec3(r * (*in.normals)[k]).dot(f) > kFlat) return true;
+    if (k < 0 || p.body[q.index()] != body) return false;
+    if ((*in.normals)[k].dot(fb) > kFlat) return true;
     for (const Vec3& face : in.normals->faces(k))
-      if (Vec3(r * face).dot(f) > kFlat) return true;
+      if (face.dot(fb) > kFlat) return true;
     return false;
   };
-  ParticleId at = from;
-  double best = f.dot(p.position[at.index()]);
-  for (int step = 0; step < 16; ++step) {
-    ParticleId next = at;
-    for (const ParticleId nb : in.finder->neighbours(at)) {
-      const double h = f.dot(p.position[nb.index()]);
-      if (h > best + 1e-9 * p.radius[nb.index()] && carries(nb)) {
-        best = h;
-        next = nb;
-      }
+  // a face along the lattice: its particles beside `from` all stand at its height, and so does the rest
+  const Vec3& origin = p.position[from.index()];
+  const double level = f.dot(origin), step = 1e-6 * p.radius[from.index()];
+  bool stepped = false;
+  for (const ParticleId nb : in.finder->neighbours(from))
+    if (std::abs(f.dot(p.position[nb.index()]) - level) > step && carries(nb)) {
+      stepped = true;
+      break;
     }
-    if (next == at) break;
-    at = next;
+  if (!stepped) return level;
+  // otherwise breadth first over the particles that carry the face, from `from`, up to kFaceVisits of them
+  // within kFaceReach: a face oblique to the lattice is a staircase whose outermost steps recur every few
+  // particles, so climbing to the nearest higher neighbour stops on a step that is not the face's top
+  std::array<std::uint32_t, 2 * kFaceVisits> seen;  // open addressing, particle index + 1 (0: empty)
+  seen.fill(0);
+  const auto visit = [&](ParticleId q) {
+    const std::uint32_t key = q.index() + 1;
+    std::size_t slot = (key * 2654435761u) % seen.size();
+    while (seen[slot] != 0) {
+      if (seen[slot] == key) return false;
+      slot = (slot + 1) % seen.size();
+    }
+    seen[slot] = key;
+    return true;
+  };
+  std::array<ParticleId, kFaceVisits> queue;
+  std::size_t head = 0, tail = 0;
+  queue[tail++] = from;
+  visit(from);
+  const double within = kFaceReach * p.radius[from.index()];
+  double best = level;
+  while (head < tail) {
+    const ParticleId at = queue[head++];
+    for (const ParticleId nb : in.finder->neighbours(at)) {
+      if (tail == queue.size()) break;
+      if ((p.position[nb.index()] - origin).squaredNorm() > within * within || !carries(nb) || !visit(nb)) continue;
+      // (higher by more than round-off: a face along the lattice keeps the height of its first particle)
+      if (const double h = f.dot(p.position[nb.index()]); h > best + 1e-9 * p.radius[nb.index()]) best = h;
+      queue[tail++] = nb;
+    }
   }
   return best;
 }
@@ -475,13 +506,12 @@ bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const 
   return !planes_.empty();
 }
 
-bool PlaneSolver::coreVertices(std::vector<std::pair<Vec3, double>>& planes, const Vec3& at, double radius,
+bool PlaneSolver::coreVertices(std::vector<std::pair<Vec3, double>>& planes, const Vec3& at, double reach,
                                std::vector<Vec3>& out) {
   out.clear();
   // a face, an edge or a corner: points whose hull is the core near `at` (a square of the face; the edge
   // line with a strip of each face; the corner with a stretch of each edge); more planes (a staircase of
   // faces, tangent planes of a curved part next to flat ones): the polytope's vertices inside a box
-  const double reach = 12.0 * radius;
   const std::size_t faces = planes.size();
   if (faces == 1) {
     const Vec3& n = planes[0].first;
@@ -533,6 +563,7 @@ bool PlaneSolver::coreVertices(std::vector<std::pair<Vec3, double>>& planes, con
     planes.emplace_back(-Vec3::Unit(k), reach - at[k]);
   }
   polytopeVertices(planes, reach + at.norm(), out);
+  planes.resize(faces);
   return !out.empty();
 }
 
@@ -595,7 +626,49 @@ bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3&
   Eigen::SelfAdjointEigenSolver<Mat3> spread;
   spread.computeDirect(normals);
   if (!(spread.eigenvalues()[1] > 1e-6 * spread.eigenvalues()[2])) return false;  // all alike: flat
-  const bool cylinder = spread.eigenvalues()[0] < 0.1 * spread.eigenvalues()[1];
+  // a cylinder whose side may end in a rounded cap (a capsule): the normals that lean along the axis belong
+  // to the cap and pull the side's fit off its axis; the side is fitted without them (the split made again
+  // with the side's own axis), and the cap, where there is one, ends the axis at its own centre
+  Vec3 axis = spread.eigenvectors().col(0);
+  const auto onSide = [&](const Ray& r) { return std::abs(r.n.dot(axis)) <= kCapLean; };
+  const auto onCap = [&](const Ray& r) { return std::abs(r.n.dot(axis)) > kCapLean; };
+  Vec3 sideCentre = Vec3::Zero(), sideNormal = Vec3::Zero(), sidePosition = Vec3::Zero();
+  Mat3 sideNormals;
+  bool sideFit = false, sideFan = false;
+  for (int pass = 0; pass < 2; ++pass) {
+    if (!centre(onSide, sideCentre, sideNormal, sidePosition, sideNormals)) break;
+    Eigen::SelfAdjointEigenSolver<Mat3> sideSpread;
+    sideSpread.computeDirect(sideNormals);
+    if (!(sideSpread.eigenvalues()[1] > 1e-6 * sideSpread.eigenvalues()[2])) break;
+    axis = sideSpread.eigenvectors().col(0);
+    sideFit = true;
+    sideFan = sideSpread.eigenvalues()[0] < 0.1 * sideSpread.eigenvalues()[1];
+  }
+  Vec3 capCentre = Vec3::Zero(), capNormal = Vec3::Zero(), capPosition = Vec3::Zero();
+  Mat3 capNormals;
+  const bool cap = sideFan && centre(onCap, capCentre, capNormal, capPosition, capNormals) && (capCentre - capPosition).dot(capNormal) < 0.0;
+  // which model the normal lines fit: all through one point (a sphere), or the side's through the axis line
+  // and the cap's through the cap's centre (a capsule near where its side meets its cap, whose normals
+  // spread over a cone too)
+  bool cylinder = spread.eigenvalues()[0] < 0.1 * spread.eigenvalues()[1];
+  if (!cylinder && sideFan) {
+    const auto offPoint = [](const Ray& r, const Vec3& p) { return ((p - r.x) - (p - r.x).dot(r.n) * r.n).squaredNorm(); };
+    double sphere = 0.0, capsule = 0.0;
+    for (std::size_t k = 0; k < count; ++k) {
+      const Ray& r = rays[k];
+      sphere += offPoint(r, c);
+      if (onSide(r)) {
+        const Vec3 m = axis.cross(r.n);
+        capsule += m.squaredNorm() > 1e-12 ? std::pow((r.x - sideCentre).dot(m), 2) / m.squaredNorm() : offPoint(r, sideCentre);
+      } else {
+        // (leaning normals without a cap to meet: no capsule)
+        capsule += cap ? offPoint(r, capCentre) : std::numeric_limits<double>::infinity();
+      }
+    }
+    // (a sphere's lines meet within 2 % of its radius: its normals' own error, not a capsule's side)
+    const double floor = static_cast<double>(count) * std::pow(0.02 * (c - meanPosition).norm(), 2);
+    cylinder = sphere > floor && capsule < 0.25 * sphere;
+  }
   if (!cylinder) {
     // a convex surface has its centre behind it; a concave one (a cloth wrapped round what it touches, the
     // inside of a bowl) has it in front, and is no sphere about it
@@ -603,30 +676,15 @@ bool PlaneSolver::curvatureCentres(const Side& side, const Vec3& at, const Vec3&
     out.push_back(c);
     return true;
   }
-  // a cylinder whose side may end in a rounded cap (a capsule): the normals that lean along the axis belong
-  // to the cap and pull the side's fit off its axis; the side is fitted without them, and the cap, where
-  // there is one, ends the axis at its own centre
-  Vec3 axis = spread.eigenvectors().col(0);
-  const auto onSide = [&](const Ray& r) { return std::abs(r.n.dot(axis)) <= kCapLean; };
-  const auto onCap = [&](const Ray& r) { return std::abs(r.n.dot(axis)) > kCapLean; };
-  Vec3 sideCentre, sideNormal, sidePosition;
-  Mat3 sideNormals;
-  if (centre(onSide, sideCentre, sideNormal, sidePosition, sideNormals)) {
-    Eigen::SelfAdjointEigenSolver<Mat3> sideSpread;
-    sideSpread.computeDirect(sideNormals);
-    if (sideSpread.eigenvalues()[1] > 1e-6 * sideSpread.eigenvalues()[2]) {
-      axis = sideSpread.eigenvectors().col(0);
-      // the centre: the point of the side's axis line nearest the lines, whatever its place along the axis
-      c = sideCentre;
-      meanNormal = sideNormal;
-      meanPosition = sidePosition;
-    }
+  if (sideFit) {
+    // the centre: the point of the side's axis line nearest the lines, whatever its place along the axis
+    c = sideCentre;
+    meanNormal = sideNormal;
+    meanPosition = sidePosition;
   }
   if (!((c - meanPosition).dot(meanNormal) < 0.0)) return false;
   const double half = 20.0 * side.meanRadius;
-  Vec3 capCentre, capNormal, capPosition;
-  Mat3 capNormals;
-  if (centre(onCap, capCentre, capNormal, capPosition, capNormals) && (capCentre - capPosition).dot(capNormal) < 0.0) {
+  if (cap) {
     // the axis from the cap's centre (projected onto it) away from the cap
     const double along = (capCentre - c).dot(axis);
     const Vec3 end = c + along * axis;
@@ -812,12 +870,12 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
       out.normal = n;
       out.source = NormalSource::Surface;
       out.open = false;
-      return out;
+        return out;
     }
   }
-  if (coreA && !curvedA) coreVertices(planesA_, hull_.pointA, a_.meanRadius, coreA_);
+  if (coreA && !curvedA) coreVertices(planesA_, hull_.pointA, 12.0 * a_.meanRadius, coreA_);
   else coreA_.assign(centresA_.begin(), centresA_.end());
-  if (coreB && !curvedB) coreVertices(planesB_, hull_.pointB, b_.meanRadius, coreB_);
+  if (coreB && !curvedB) coreVertices(planesB_, hull_.pointB, 12.0 * b_.meanRadius, coreB_);
   else coreB_.assign(centresB_.begin(), centresB_.end());
   if (coreA || coreB) {
     const HullDistance c = hullDistance(coreA ? std::span<const Vec3>(coreA_) : coreless(a_, thinA),
@@ -1195,9 +1253,10 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
   ++stats.byCase[static_cast<std::size_t>(patch.planeCase)];
 
   // the local particles of both sides, and the plane across which they are farthest apart
-  gather(in, a_, settings_.validationRings);
-  gather(in, b_, settings_.validationRings);
-  if (patch.a == patch.b) {
+  const auto gatherSides = [&](int rings) {
+    gather(in, a_, rings);
+    gather(in, b_, rings);
+    if (patch.a != patch.b) return;
     // a body touching itself: neighbours within reach of both sides belong to neither (a layer pressed
     // together side by side shares them)
     const auto drop = [&](Side& from, const Side& other) {
@@ -1210,7 +1269,8 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
     };
     drop(a_, b_);
     drop(b_, a_);
-  }
+  };
+  gatherSides(settings_.validationRings);
   Vec3 d0 = Vec3::Zero();
   for (const std::uint32_t ci : idx) d0 += (isFlipped(ci) ? -1.0 : 1.0) * set.contacts[ci].normal;
   if (!(d0.norm() > 1e-12)) d0 = b_.centroid - a_.centroid;

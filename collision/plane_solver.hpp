@@ -128,8 +128,8 @@ class PlaneSolver {
   bool localCore(const NarrowPhaseInput& in, const Side& side, const HullDistance& h, bool isA, const Vec3& towards,
                  std::vector<Vec3>& out, bool& curved, bool& exact);
   /// The points whose hull is the polytope of face planes n . x <= d near `at` (appends box planes when
-  /// more than three faces); radius: the side's particle radius (sets the reach).
-  static bool coreVertices(std::vector<std::pair<Vec3, double>>& planes, const Vec3& at, double radius,
+  /// more than three faces, and removes them again); reach: how far from `at` the points go [m].
+  static bool coreVertices(std::vector<std::pair<Vec3, double>>& planes, const Vec3& at, double reach,
                            std::vector<Vec3>& out);
   /// Whether the particles of side X's closest feature (hull simplex) lie on the planes of their flat faces
   /// (planes_) and `towards` is in the feature's normal cone: the particle hull is the core there.
