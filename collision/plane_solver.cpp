@@ -857,6 +857,7 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
   if (exactA && exactB) {  // the particles' hulls are the cores at their closest features
     out.source = NormalSource::Surface;
     out.open = hull_.count == 1;  // vertex on vertex
+    out.settled = true;
     return out;
   }
   // a side whose core there is one face: a half-space, whose closest-point direction to anything is its
@@ -870,7 +871,8 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
       out.normal = n;
       out.source = NormalSource::Surface;
       out.open = false;
-        return out;
+      out.settled = true;
+      return out;
     }
   }
   if (coreA && !curvedA) coreVertices(planesA_, hull_.pointA, 12.0 * a_.meanRadius, coreA_);
@@ -1284,7 +1286,21 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
   patch.curvedSide = -1;
   Evaluation bestEval{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   bool valid = false;
-  const Choice plane = separationPlane(in, d0);
+  Choice plane = separationPlane(in, d0);
+  // where the plane is not settled by exact features, the cores are rebuilt from one ring more between two
+  // rigid bodies: a face that bounds the core near the contact (an edge's second face, a staircase's next
+  // step) may carry no particle of the first ring
+  const auto rigid = [&](BodyId b) { return in.bodies->info[b.index()].kind != BodyKind::Deformable; };
+  if (plane.found && !plane.settled && rigid(patch.a) && rigid(patch.b)) {
+    gatherSides(settings_.validationRings + 1);
+    const Choice wide = separationPlane(in, d0);
+    if (wide.found) {
+      plane = wide;
+    } else {
+      gatherSides(settings_.validationRings);
+      plane = separationPlane(in, d0);
+    }
+  }
   if (plane.found) {
     Evaluation e = evaluate(plane.normal);
     ++stats.candidates;

@@ -86,6 +86,7 @@ class PlaneSolver {
     Vec3 normal = Vec3::Zero();
     NormalSource source = NormalSource::Separation;
     bool open = false;  // the geometry leaves the normal open: corner on corner, or nothing rebuilt
+    bool settled = false;  // exact: both hulls are the cores at their closest features, or one core a face
     std::int8_t curvedSide = -1;  // as ContactPatch::curvedSide
     std::array<Vec3, 2> core{Vec3::Zero(), Vec3::Zero()};
   };
