@@ -473,7 +473,7 @@ bool PlaneSolver::localCore(const NarrowPhaseInput& in, const Side& side, const 
         break;
       }
   }
-  if (!flatNear && distinctNear >= 3 && curvatureCentres(side, at, towards, out)) {
+  if (!flatNear && distinctNear >= 2 && curvatureCentres(side, at, towards, out)) {
     curved = true;
     return true;
   }
