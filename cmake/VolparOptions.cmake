@@ -14,7 +14,12 @@ function(volpar_target_options target)
     $<$<AND:$<CXX_COMPILER_ID:GNU>,$<VERSION_LESS:$<CXX_COMPILER_VERSION>,13>>:-Wno-restrict>)
   target_compile_definitions(${target} PRIVATE
     $<$<NOT:$<CONFIG:Release>>:VOLPAR_ENABLE_ASSERTS=1>)
-  target_include_directories(${target} PUBLIC ${PROJECT_SOURCE_DIR})
+  # headers are included as "volpar/<module>/..." (the build tree's include/volpar links to the modules, as
+  # an install puts them under <prefix>/include/volpar); tests and tools also include their own as
+  # "tests/..." and "tools/..."
+  target_include_directories(${target} PUBLIC $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}/include>
+                                              $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  target_include_directories(${target} PRIVATE ${PROJECT_SOURCE_DIR})
 endfunction()
 
 # VOLPAR_FUZZ (Clang only): every target gets libFuzzer's coverage instrumentation

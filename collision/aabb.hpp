@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <limits>
 
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

@@ -1,4 +1,4 @@
-#include "collision/aabb_tree.hpp"
+#include "volpar/collision/aabb_tree.hpp"
 
 #include <sstream>
 

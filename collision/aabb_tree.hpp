@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "collision/aabb.hpp"
-#include "engine/core/status.hpp"
+#include "volpar/collision/aabb.hpp"
+#include "volpar/engine/core/status.hpp"
 
 namespace volpar {
 

@@ -1,4 +1,4 @@
-#include "collision/broadphase.hpp"
+#include "volpar/collision/broadphase.hpp"
 
 #include <algorithm>
 

@@ -11,9 +11,9 @@
 #include <span>
 #include <vector>
 
-#include "collision/aabb_tree.hpp"
-#include "engine/core/ids.hpp"
-#include "engine/core/plane.hpp"
+#include "volpar/collision/aabb_tree.hpp"
+#include "volpar/engine/core/ids.hpp"
+#include "volpar/engine/core/plane.hpp"
 
 namespace volpar {
 

@@ -8,12 +8,12 @@
 #include <span>
 #include <vector>
 
-#include "collision/normal_cache.hpp"
-#include "collision/particle_contacts.hpp"
-#include "collision/separating_plane.hpp"
-#include "engine/core/body_store.hpp"
-#include "engine/core/particle_store.hpp"
-#include "engine/core/plane.hpp"
+#include "volpar/collision/normal_cache.hpp"
+#include "volpar/collision/particle_contacts.hpp"
+#include "volpar/collision/separating_plane.hpp"
+#include "volpar/engine/core/body_store.hpp"
+#include "volpar/engine/core/particle_store.hpp"
+#include "volpar/engine/core/plane.hpp"
 
 namespace volpar {
 

@@ -1,4 +1,4 @@
-#include "collision/hull_distance.hpp"
+#include "volpar/collision/hull_distance.hpp"
 
 #include <algorithm>
 #include <cmath>

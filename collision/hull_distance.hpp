@@ -15,7 +15,7 @@
 #include <cstdint>
 #include <span>
 
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

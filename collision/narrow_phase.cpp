@@ -1,4 +1,4 @@
-#include "collision/narrow_phase.hpp"
+#include "volpar/collision/narrow_phase.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>

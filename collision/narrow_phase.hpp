@@ -13,16 +13,16 @@
 #include <span>
 #include <vector>
 
-#include "collision/contact_patch.hpp"
-#include "collision/normal_cache.hpp"
-#include "collision/particle_contacts.hpp"
-#include "collision/patch_builder.hpp"
-#include "collision/plane_solver.hpp"
-#include "collision/separating_plane.hpp"
-#include "engine/core/body_store.hpp"
-#include "engine/core/particle_store.hpp"
-#include "engine/core/plane.hpp"
-#include "engine/core/thread_pool.hpp"
+#include "volpar/collision/contact_patch.hpp"
+#include "volpar/collision/normal_cache.hpp"
+#include "volpar/collision/particle_contacts.hpp"
+#include "volpar/collision/patch_builder.hpp"
+#include "volpar/collision/plane_solver.hpp"
+#include "volpar/collision/separating_plane.hpp"
+#include "volpar/engine/core/body_store.hpp"
+#include "volpar/engine/core/particle_store.hpp"
+#include "volpar/engine/core/plane.hpp"
+#include "volpar/engine/core/thread_pool.hpp"
 
 namespace volpar {
 

@@ -1,6 +1,6 @@
-#include "collision/normal_cache.hpp"
+#include "volpar/collision/normal_cache.hpp"
 
-#include "collision/particle_contacts.hpp"
+#include "volpar/collision/particle_contacts.hpp"
 
 namespace volpar {
 

@@ -18,10 +18,10 @@
 #include <span>
 #include <vector>
 
-#include "collision/normal_estimation.hpp"
-#include "engine/core/body_store.hpp"
-#include "engine/core/particle_store.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/collision/normal_estimation.hpp"
+#include "volpar/engine/core/body_store.hpp"
+#include "volpar/engine/core/particle_store.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

@@ -1,4 +1,4 @@
-#include "collision/normal_estimation.hpp"
+#include "volpar/collision/normal_estimation.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>

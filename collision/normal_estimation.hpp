@@ -36,9 +36,9 @@
 #include <span>
 #include <vector>
 
-#include "engine/core/ids.hpp"
-#include "engine/core/particle_store.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/ids.hpp"
+#include "volpar/engine/core/particle_store.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

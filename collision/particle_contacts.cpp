@@ -1,4 +1,4 @@
-#include "collision/particle_contacts.hpp"
+#include "volpar/collision/particle_contacts.hpp"
 
 #include <algorithm>
 #include <cmath>

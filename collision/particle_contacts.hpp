@@ -27,13 +27,13 @@
 #include <span>
 #include <vector>
 
-#include "collision/aabb.hpp"
-#include "collision/broadphase.hpp"
-#include "engine/core/body_store.hpp"
-#include "engine/core/connector_store.hpp"
-#include "engine/core/particle_store.hpp"
-#include "engine/core/plane.hpp"
-#include "engine/core/thread_pool.hpp"
+#include "volpar/collision/aabb.hpp"
+#include "volpar/collision/broadphase.hpp"
+#include "volpar/engine/core/body_store.hpp"
+#include "volpar/engine/core/connector_store.hpp"
+#include "volpar/engine/core/particle_store.hpp"
+#include "volpar/engine/core/plane.hpp"
+#include "volpar/engine/core/thread_pool.hpp"
 
 namespace volpar {
 

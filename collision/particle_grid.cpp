@@ -1,4 +1,4 @@
-#include "collision/particle_grid.hpp"
+#include "volpar/collision/particle_grid.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -9,7 +9,7 @@
 #include <utility>
 #include <vector>
 
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

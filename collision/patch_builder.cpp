@@ -1,4 +1,4 @@
-#include "collision/patch_builder.hpp"
+#include "volpar/collision/patch_builder.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>

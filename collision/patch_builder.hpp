@@ -21,7 +21,7 @@
 #include <span>
 #include <vector>
 
-#include "collision/contact_patch.hpp"
+#include "volpar/collision/contact_patch.hpp"
 
 namespace volpar {
 

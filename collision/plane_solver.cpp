@@ -1,4 +1,4 @@
-#include "collision/plane_solver.hpp"
+#include "volpar/collision/plane_solver.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>

@@ -32,8 +32,8 @@
 #include <span>
 #include <vector>
 
-#include "collision/contact_patch.hpp"
-#include "collision/hull_distance.hpp"
+#include "volpar/collision/contact_patch.hpp"
+#include "volpar/collision/hull_distance.hpp"
 
 namespace volpar {
 

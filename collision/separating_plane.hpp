@@ -27,7 +27,7 @@
 #include <array>
 #include <cstdint>
 
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

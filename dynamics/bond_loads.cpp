@@ -1,10 +1,10 @@
-#include "dynamics/bond_loads.hpp"
+#include "volpar/dynamics/bond_loads.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 
-#include "dynamics/breakage.hpp"
+#include "volpar/dynamics/breakage.hpp"
 
 namespace volpar {
 

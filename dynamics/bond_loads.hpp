@@ -25,9 +25,9 @@
 
 #include <Eigen/SparseCholesky>
 
-#include "engine/core/body_store.hpp"
-#include "engine/core/connector_store.hpp"
-#include "engine/core/particle_store.hpp"
+#include "volpar/engine/core/body_store.hpp"
+#include "volpar/engine/core/connector_store.hpp"
+#include "volpar/engine/core/particle_store.hpp"
 
 namespace volpar {
 

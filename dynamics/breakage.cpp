@@ -1,4 +1,4 @@
-#include "dynamics/breakage.hpp"
+#include "volpar/dynamics/breakage.hpp"
 
 #include <algorithm>
 #include <numeric>

@@ -1,4 +1,4 @@
-#include "dynamics/contact_solver.hpp"
+#include "volpar/dynamics/contact_solver.hpp"
 
 #include <algorithm>
 #include <bit>

@@ -25,8 +25,8 @@
 #include <span>
 #include <vector>
 
-#include "engine/core/thread_pool.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/thread_pool.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

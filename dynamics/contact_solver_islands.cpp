@@ -28,7 +28,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "dynamics/contact_solver.hpp"
+#include "volpar/dynamics/contact_solver.hpp"
 
 namespace volpar {
 

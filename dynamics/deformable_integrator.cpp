@@ -1,4 +1,4 @@
-#include "dynamics/deformable_integrator.hpp"
+#include "volpar/dynamics/deformable_integrator.hpp"
 
 #include <algorithm>
 #include <cmath>

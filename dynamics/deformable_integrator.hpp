@@ -12,8 +12,8 @@
 #include <span>
 #include <vector>
 
-#include "engine/core/connector_store.hpp"
-#include "engine/core/particle_store.hpp"
+#include "volpar/engine/core/connector_store.hpp"
+#include "volpar/engine/core/particle_store.hpp"
 
 namespace volpar {
 

@@ -1,4 +1,4 @@
-#include "dynamics/mass_properties.hpp"
+#include "volpar/dynamics/mass_properties.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <cmath>

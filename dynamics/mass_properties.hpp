@@ -5,7 +5,7 @@
 
 #include <span>
 
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

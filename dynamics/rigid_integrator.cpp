@@ -1,4 +1,4 @@
-#include "dynamics/rigid_integrator.hpp"
+#include "volpar/dynamics/rigid_integrator.hpp"
 
 #include <cmath>
 

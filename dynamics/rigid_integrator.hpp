@@ -12,7 +12,7 @@
 // the gyroscopic treatment: omega is recovered from the conserved momentum, so the intermediate-axis
 // instability appears as it should.
 
-#include "engine/core/body_store.hpp"
+#include "volpar/engine/core/body_store.hpp"
 
 namespace volpar {
 

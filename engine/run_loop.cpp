@@ -1,10 +1,10 @@
-#include "engine/run_loop.hpp"
+#include "volpar/engine/run_loop.hpp"
 
 #include <chrono>
 #include <csignal>
 #include <filesystem>
 
-#include "engine/io/xdmf_writer.hpp"
+#include "volpar/engine/io/xdmf_writer.hpp"
 
 namespace volpar {
 

@@ -7,9 +7,9 @@
 #include <functional>
 #include <string>
 
-#include "engine/core/status.hpp"
-#include "engine/io/h5md_writer.hpp"
-#include "engine/world.hpp"
+#include "volpar/engine/core/status.hpp"
+#include "volpar/engine/io/h5md_writer.hpp"
+#include "volpar/engine/world.hpp"
 
 namespace volpar {
 

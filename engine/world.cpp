@@ -1,14 +1,14 @@
-#include "engine/world.hpp"
+#include "volpar/engine/world.hpp"
 
 #include <Eigen/SVD>
 #include <array>
 #include <chrono>
 #include <cmath>
 
-#include "dynamics/contact_solver.hpp"
-#include "dynamics/deformable_integrator.hpp"
-#include "dynamics/mass_properties.hpp"
-#include "dynamics/rigid_integrator.hpp"
+#include "volpar/dynamics/contact_solver.hpp"
+#include "volpar/dynamics/deformable_integrator.hpp"
+#include "volpar/dynamics/mass_properties.hpp"
+#include "volpar/dynamics/rigid_integrator.hpp"
 
 namespace volpar {
 

@@ -18,21 +18,21 @@
 #include <string>
 #include <vector>
 
-#include "collision/broadphase.hpp"
-#include "collision/narrow_phase.hpp"
-#include "collision/normal_cache.hpp"
-#include "collision/particle_contacts.hpp"
-#include "dynamics/bond_loads.hpp"
-#include "dynamics/breakage.hpp"
-#include "dynamics/deformable_integrator.hpp"
-#include "engine/builders/particle_cloud.hpp"
-#include "engine/core/body_store.hpp"
-#include "engine/core/connector_store.hpp"
-#include "engine/core/material.hpp"
-#include "engine/core/particle_store.hpp"
-#include "engine/core/status.hpp"
-#include "engine/core/step_stats.hpp"
-#include "engine/world_settings.hpp"
+#include "volpar/collision/broadphase.hpp"
+#include "volpar/collision/narrow_phase.hpp"
+#include "volpar/collision/normal_cache.hpp"
+#include "volpar/collision/particle_contacts.hpp"
+#include "volpar/dynamics/bond_loads.hpp"
+#include "volpar/dynamics/breakage.hpp"
+#include "volpar/dynamics/deformable_integrator.hpp"
+#include "volpar/engine/builders/particle_cloud.hpp"
+#include "volpar/engine/core/body_store.hpp"
+#include "volpar/engine/core/connector_store.hpp"
+#include "volpar/engine/core/material.hpp"
+#include "volpar/engine/core/particle_store.hpp"
+#include "volpar/engine/core/status.hpp"
+#include "volpar/engine/core/step_stats.hpp"
+#include "volpar/engine/world_settings.hpp"
 
 namespace volpar {
 

@@ -8,9 +8,9 @@
 #include <string>
 #include <unordered_map>
 
-#include "dynamics/mass_properties.hpp"
-#include "dynamics/rigid_integrator.hpp"
-#include "engine/world.hpp"
+#include "volpar/dynamics/mass_properties.hpp"
+#include "volpar/dynamics/rigid_integrator.hpp"
+#include "volpar/engine/world.hpp"
 
 namespace volpar {
 

@@ -2,10 +2,10 @@
 
 #include <cstdint>
 
-#include "collision/separating_plane.hpp"
-#include "dynamics/contact_solver.hpp"
-#include "engine/core/plane.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/collision/separating_plane.hpp"
+#include "volpar/dynamics/contact_solver.hpp"
+#include "volpar/engine/core/plane.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <string>
 
-#include "engine/builders/obj_reader.hpp"
+#include "volpar/engine/builders/obj_reader.hpp"
 
 namespace {
 

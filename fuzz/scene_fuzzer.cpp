@@ -18,8 +18,8 @@
 #include <string>
 #include <variant>
 
-#include "engine/scene/scene_build.hpp"
-#include "engine/scene/scene_loader.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
 
 namespace {
 

@@ -29,7 +29,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/io/h5md_reader.hpp"
+#include "volpar/engine/io/h5md_reader.hpp"
 
 namespace {
 

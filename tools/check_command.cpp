@@ -6,11 +6,11 @@
 #include <iostream>
 #include <numbers>
 
-#include "collision/normal_estimation.hpp"
-#include "collision/reference/fcl_adapter.hpp"
-#include "engine/scene/scene_build.hpp"
-#include "engine/core/percentile.hpp"
-#include "engine/scene/scene_loader.hpp"
+#include "volpar/collision/normal_estimation.hpp"
+#include "volpar/collision/reference/fcl_adapter.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/core/percentile.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
 #include "tools/commands.hpp"
 #include "tools/json_writer.hpp"
 

@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/status.hpp"
-#include "engine/scene/scene_build.hpp"
-#include "engine/scene/scene_loader.hpp"
+#include "volpar/engine/core/status.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
 
 namespace volpar::cli {
 

@@ -13,8 +13,8 @@
 #include <optional>
 #include <thread>
 
-#include "engine/io/h5md_reader.hpp"
-#include "engine/io/xdmf_writer.hpp"
+#include "volpar/engine/io/h5md_reader.hpp"
+#include "volpar/engine/io/xdmf_writer.hpp"
 #include "tools/commands.hpp"
 #include "tools/json_writer.hpp"
 

@@ -9,10 +9,10 @@
 #include <iostream>
 #include <optional>
 
-#include "engine/io/xdmf_writer.hpp"
-#include "engine/run_loop.hpp"
-#include "engine/scene/scene_build.hpp"
-#include "engine/scene/scene_loader.hpp"
+#include "volpar/engine/io/xdmf_writer.hpp"
+#include "volpar/engine/run_loop.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
 #include "tools/commands.hpp"
 #include "tools/json_writer.hpp"
 

@@ -9,7 +9,7 @@
 #include <exception>
 #include <new>
 
-#include "engine/core/version.hpp"
+#include "volpar/engine/core/version.hpp"
 #include "tools/commands.hpp"
 
 namespace {

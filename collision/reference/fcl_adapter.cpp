@@ -1,4 +1,4 @@
-#include "collision/reference/fcl_adapter.hpp"
+#include "volpar/collision/reference/fcl_adapter.hpp"
 
 #include <fcl/fcl.h>
 

@@ -15,13 +15,13 @@
 #include <string>
 #include <vector>
 
-#include "collision/aabb.hpp"
-#include "collision/broadphase.hpp"
-#include "collision/particle_contacts.hpp"
-#include "engine/core/body_store.hpp"
-#include "engine/core/particle_store.hpp"
-#include "engine/core/plane.hpp"
-#include "engine/core/source_shape.hpp"
+#include "volpar/collision/aabb.hpp"
+#include "volpar/collision/broadphase.hpp"
+#include "volpar/collision/particle_contacts.hpp"
+#include "volpar/engine/core/body_store.hpp"
+#include "volpar/engine/core/particle_store.hpp"
+#include "volpar/engine/core/plane.hpp"
+#include "volpar/engine/core/source_shape.hpp"
 
 namespace volpar::reference {
 

@@ -1,4 +1,4 @@
-#include "engine/builders/elastic_calibration.hpp"
+#include "volpar/engine/builders/elastic_calibration.hpp"
 
 #include <algorithm>
 #include <array>

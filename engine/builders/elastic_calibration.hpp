@@ -23,8 +23,8 @@
 #include <span>
 #include <vector>
 
-#include "engine/builders/fill.hpp"
-#include "engine/builders/particle_cloud.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/builders/particle_cloud.hpp"
 
 namespace volpar {
 

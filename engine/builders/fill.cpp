@@ -1,12 +1,12 @@
-#include "engine/builders/fill.hpp"
+#include "volpar/engine/builders/fill.hpp"
 
 #include <cmath>
 #include <numbers>
 #include <set>
 #include <sstream>
 
-#include "collision/normal_estimation.hpp"
-#include "collision/particle_grid.hpp"
+#include "volpar/collision/normal_estimation.hpp"
+#include "volpar/collision/particle_grid.hpp"
 
 namespace volpar {
 

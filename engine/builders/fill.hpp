@@ -19,9 +19,9 @@
 #include <span>
 #include <vector>
 
-#include "engine/builders/particle_cloud.hpp"
-#include "engine/builders/shapes.hpp"
-#include "engine/core/status.hpp"
+#include "volpar/engine/builders/particle_cloud.hpp"
+#include "volpar/engine/builders/shapes.hpp"
+#include "volpar/engine/core/status.hpp"
 
 namespace volpar {
 

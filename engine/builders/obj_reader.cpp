@@ -1,4 +1,4 @@
-#include "engine/builders/obj_reader.hpp"
+#include "volpar/engine/builders/obj_reader.hpp"
 
 #include <array>
 #include <charconv>
@@ -8,8 +8,8 @@
 #include <sstream>
 #include <string_view>
 
-#include "engine/core/input_file.hpp"
-#include "engine/core/limits.hpp"
+#include "volpar/engine/core/input_file.hpp"
+#include "volpar/engine/core/limits.hpp"
 
 namespace volpar {
 

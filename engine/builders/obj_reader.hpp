@@ -6,8 +6,8 @@
 
 #include <string>
 
-#include "engine/builders/triangle_mesh.hpp"
-#include "engine/core/status.hpp"
+#include "volpar/engine/builders/triangle_mesh.hpp"
+#include "volpar/engine/core/status.hpp"
 
 namespace volpar {
 

@@ -6,8 +6,8 @@
 #include <optional>
 #include <vector>
 
-#include "engine/builders/solid_mass.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/builders/solid_mass.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

@@ -1,4 +1,4 @@
-#include "engine/builders/shapes.hpp"
+#include "volpar/engine/builders/shapes.hpp"
 
 #include <algorithm>
 #include <array>

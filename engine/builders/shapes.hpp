@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/builders/solid_mass.hpp"
-#include "engine/builders/triangle_mesh.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/builders/solid_mass.hpp"
+#include "volpar/engine/builders/triangle_mesh.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

@@ -2,7 +2,7 @@
 // The mass properties of a solid shape at unit density (shapes.hpp), which a body filled from it takes
 // (world.hpp, MassModel).
 
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

@@ -1,4 +1,4 @@
-#include "engine/builders/triangle_mesh.hpp"
+#include "volpar/engine/builders/triangle_mesh.hpp"
 
 #include <algorithm>
 #include <cmath>

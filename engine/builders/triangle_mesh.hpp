@@ -7,8 +7,8 @@
 #include <utility>
 #include <vector>
 
-#include "engine/core/status.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/status.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/ids.hpp"
-#include "engine/core/source_shape.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/ids.hpp"
+#include "volpar/engine/core/source_shape.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

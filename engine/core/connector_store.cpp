@@ -1,4 +1,4 @@
-#include "engine/core/connector_store.hpp"
+#include "volpar/engine/core/connector_store.hpp"
 
 #include <limits>
 

@@ -5,7 +5,7 @@
 #include <limits>
 #include <vector>
 
-#include "engine/core/ids.hpp"
+#include "volpar/engine/core/ids.hpp"
 
 namespace volpar {
 

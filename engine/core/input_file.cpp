@@ -1,4 +1,4 @@
-#include "engine/core/input_file.hpp"
+#include "volpar/engine/core/input_file.hpp"
 
 #include <filesystem>
 #include <fstream>

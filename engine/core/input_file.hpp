@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <string>
 
-#include "engine/core/status.hpp"
+#include "volpar/engine/core/status.hpp"
 
 namespace volpar {
 

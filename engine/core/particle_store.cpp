@@ -1,4 +1,4 @@
-#include "engine/core/particle_store.hpp"
+#include "volpar/engine/core/particle_store.hpp"
 
 namespace volpar {
 

@@ -6,8 +6,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "engine/core/ids.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/ids.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

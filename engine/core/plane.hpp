@@ -1,7 +1,7 @@
 #pragma once
 
-#include "engine/core/ids.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/ids.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

@@ -1,4 +1,4 @@
-#include "engine/core/source_shape.hpp"
+#include "volpar/engine/core/source_shape.hpp"
 
 #include <algorithm>
 #include <cmath>

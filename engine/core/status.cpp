@@ -1,4 +1,4 @@
-#include "engine/core/status.hpp"
+#include "volpar/engine/core/status.hpp"
 
 #include <cstdio>
 #include <cstdlib>

@@ -1,4 +1,4 @@
-#include "engine/core/thread_pool.hpp"
+#include "volpar/engine/core/thread_pool.hpp"
 
 #include <algorithm>
 

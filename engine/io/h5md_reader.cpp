@@ -1,4 +1,4 @@
-#include "engine/io/h5md_reader.hpp"
+#include "volpar/engine/io/h5md_reader.hpp"
 
 #include <hdf5.h>
 

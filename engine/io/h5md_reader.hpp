@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/status.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/core/status.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

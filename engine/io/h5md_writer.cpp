@@ -1,4 +1,4 @@
-#include "engine/io/h5md_writer.hpp"
+#include "volpar/engine/io/h5md_writer.hpp"
 
 #include <hdf5.h>
 #include <sys/resource.h>
@@ -10,10 +10,10 @@
 #include <filesystem>
 #include <set>
 
-#include "engine/core/input_file.hpp"
-#include "engine/core/limits.hpp"
-#include "engine/core/version.hpp"
-#include "engine/io/xdmf_writer.hpp"
+#include "volpar/engine/core/input_file.hpp"
+#include "volpar/engine/core/limits.hpp"
+#include "volpar/engine/core/version.hpp"
+#include "volpar/engine/io/xdmf_writer.hpp"
 
 namespace volpar {
 

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/status.hpp"
-#include "engine/world.hpp"
+#include "volpar/engine/core/status.hpp"
+#include "volpar/engine/world.hpp"
 
 namespace volpar {
 

@@ -1,4 +1,4 @@
-#include "engine/io/xdmf_writer.hpp"
+#include "volpar/engine/io/xdmf_writer.hpp"
 
 #include <algorithm>
 #include <cstdio>

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/status.hpp"
+#include "volpar/engine/core/status.hpp"
 
 namespace volpar {
 

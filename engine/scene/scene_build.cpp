@@ -1,4 +1,4 @@
-#include "engine/scene/scene_build.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -12,8 +12,8 @@
 #include <numbers>
 #include <sstream>
 
-#include "engine/builders/elastic_calibration.hpp"
-#include "engine/builders/obj_reader.hpp"
+#include "volpar/engine/builders/elastic_calibration.hpp"
+#include "volpar/engine/builders/obj_reader.hpp"
 
 namespace volpar {
 

@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/status.hpp"
-#include "engine/scene/scene_desc.hpp"
-#include "engine/world.hpp"
+#include "volpar/engine/core/status.hpp"
+#include "volpar/engine/scene/scene_desc.hpp"
+#include "volpar/engine/world.hpp"
 
 namespace volpar {
 

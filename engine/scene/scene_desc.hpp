@@ -10,11 +10,11 @@
 #include <variant>
 #include <vector>
 
-#include "engine/builders/fill.hpp"
-#include "engine/core/body_store.hpp"
-#include "engine/core/connector_store.hpp"
-#include "engine/core/material.hpp"
-#include "engine/core/types.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/core/body_store.hpp"
+#include "volpar/engine/core/connector_store.hpp"
+#include "volpar/engine/core/material.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
 

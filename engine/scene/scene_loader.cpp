@@ -1,4 +1,4 @@
-#include "engine/scene/scene_loader.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -12,8 +12,8 @@
 #include <set>
 #include <sstream>
 
-#include "engine/core/input_file.hpp"
-#include "engine/core/limits.hpp"
+#include "volpar/engine/core/input_file.hpp"
+#include "volpar/engine/core/limits.hpp"
 
 namespace volpar {
 

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/status.hpp"
-#include "engine/scene/scene_desc.hpp"
+#include "volpar/engine/core/status.hpp"
+#include "volpar/engine/scene/scene_desc.hpp"
 
 namespace volpar {
 

@@ -9,8 +9,8 @@
 #include <random>
 #include <set>
 
-#include "collision/aabb_tree.hpp"
-#include "collision/broadphase.hpp"
+#include "volpar/collision/aabb_tree.hpp"
+#include "volpar/collision/broadphase.hpp"
 
 namespace volpar {
 namespace {

@@ -38,12 +38,12 @@
 #include <string>
 #include <vector>
 
-#include "collision/contact_patch.hpp"
-#include "collision/reference/fcl_adapter.hpp"
-#include "engine/builders/fill.hpp"
-#include "engine/builders/obj_reader.hpp"
-#include "engine/builders/shapes.hpp"
-#include "engine/world.hpp"
+#include "volpar/collision/contact_patch.hpp"
+#include "volpar/collision/reference/fcl_adapter.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/builders/obj_reader.hpp"
+#include "volpar/engine/builders/shapes.hpp"
+#include "volpar/engine/world.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

@@ -6,9 +6,9 @@
 #include <numbers>
 #include <random>
 
-#include "collision/reference/fcl_adapter.hpp"
-#include "engine/builders/fill.hpp"
-#include "engine/builders/shapes.hpp"
+#include "volpar/collision/reference/fcl_adapter.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/builders/shapes.hpp"
 
 namespace volpar {
 namespace {

@@ -8,7 +8,7 @@
 
 #include <random>
 
-#include "collision/hull_distance.hpp"
+#include "volpar/collision/hull_distance.hpp"
 
 namespace volpar {
 namespace {

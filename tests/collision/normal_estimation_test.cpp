@@ -8,9 +8,9 @@
 #include <cstdio>
 #include <numbers>
 
-#include "collision/normal_estimation.hpp"
-#include "engine/builders/fill.hpp"
-#include "engine/builders/shapes.hpp"
+#include "volpar/collision/normal_estimation.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/builders/shapes.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

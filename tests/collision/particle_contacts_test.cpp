@@ -6,13 +6,13 @@
 #include <optional>
 #include <random>
 
-#include "collision/reference/fcl_adapter.hpp"
-#include "engine/builders/fill.hpp"
-#include "engine/builders/obj_reader.hpp"
-#include "collision/narrow_phase.hpp"
-#include "engine/scene/scene_build.hpp"
-#include "engine/scene/scene_loader.hpp"
-#include "engine/world.hpp"
+#include "volpar/collision/reference/fcl_adapter.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/builders/obj_reader.hpp"
+#include "volpar/collision/narrow_phase.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
+#include "volpar/engine/world.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

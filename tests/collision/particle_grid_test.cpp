@@ -1,6 +1,6 @@
 // The uniform grid against a brute-force reference.
 
-#include "collision/particle_grid.hpp"
+#include "volpar/collision/particle_grid.hpp"
 
 #include <gtest/gtest.h>
 

@@ -11,8 +11,8 @@
 #include <limits>
 #include <random>
 
-#include "collision/reference/fcl_adapter.hpp"
-#include "engine/builders/shapes.hpp"
+#include "volpar/collision/reference/fcl_adapter.hpp"
+#include "volpar/engine/builders/shapes.hpp"
 
 namespace volpar::test {
 

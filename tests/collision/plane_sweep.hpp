@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/builders/fill.hpp"
-#include "engine/core/source_shape.hpp"
-#include "engine/world.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/core/source_shape.hpp"
+#include "volpar/engine/world.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar::test {

@@ -8,9 +8,9 @@
 #include <cstring>
 #include <numbers>
 
-#include "engine/builders/fill.hpp"
-#include "engine/builders/obj_reader.hpp"
-#include "engine/world.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/builders/obj_reader.hpp"
+#include "volpar/engine/world.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "collision/normal_estimation.hpp"
+#include "volpar/collision/normal_estimation.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

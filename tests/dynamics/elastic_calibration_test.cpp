@@ -14,7 +14,7 @@
 
 #include <Eigen/SparseCholesky>
 
-#include "engine/builders/elastic_calibration.hpp"
+#include "volpar/engine/builders/elastic_calibration.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

@@ -6,7 +6,7 @@
 
 #include <cmath>
 
-#include "dynamics/rigid_integrator.hpp"
+#include "volpar/dynamics/rigid_integrator.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

@@ -10,8 +10,8 @@
 #include <numbers>
 #include <string>
 
-#include "engine/builders/shapes.hpp"
-#include "engine/scene/scene_build.hpp"
+#include "volpar/engine/builders/shapes.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

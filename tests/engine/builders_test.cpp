@@ -5,10 +5,10 @@
 #include <cmath>
 #include <numbers>
 
-#include "dynamics/mass_properties.hpp"
-#include "engine/builders/fill.hpp"
-#include "engine/builders/obj_reader.hpp"
-#include "engine/builders/shapes.hpp"
+#include "volpar/dynamics/mass_properties.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/builders/obj_reader.hpp"
+#include "volpar/engine/builders/shapes.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

@@ -16,10 +16,10 @@
 #include <thread>
 #include <tuple>
 
-#include "engine/io/h5md_reader.hpp"
-#include "engine/io/h5md_writer.hpp"
-#include "engine/io/xdmf_writer.hpp"
-#include "engine/run_loop.hpp"
+#include "volpar/engine/io/h5md_reader.hpp"
+#include "volpar/engine/io/h5md_writer.hpp"
+#include "volpar/engine/io/xdmf_writer.hpp"
+#include "volpar/engine/run_loop.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

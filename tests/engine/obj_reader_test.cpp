@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/builders/obj_reader.hpp"
+#include "volpar/engine/builders/obj_reader.hpp"
 
 namespace volpar {
 namespace {

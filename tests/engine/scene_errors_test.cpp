@@ -7,10 +7,10 @@
 #include <filesystem>
 #include <fstream>
 
-#include "engine/builders/obj_reader.hpp"
-#include "engine/core/input_file.hpp"
-#include "engine/scene/scene_build.hpp"
-#include "engine/scene/scene_loader.hpp"
+#include "volpar/engine/builders/obj_reader.hpp"
+#include "volpar/engine/core/input_file.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
 
 #include "tests/support/test_support.hpp"
 

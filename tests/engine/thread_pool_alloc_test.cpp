@@ -8,7 +8,7 @@
 #include <new>
 #include <vector>
 
-#include "engine/core/thread_pool.hpp"
+#include "volpar/engine/core/thread_pool.hpp"
 
 // Every allocation of this test program is counted (the replaceable global operators new and delete, on
 // top of malloc and free), so that a test can check that a piece of code allocates nothing.

@@ -1,6 +1,6 @@
 // The thread pool hands out every item exactly once, splits ranges as documented, and keeps working
 // after its workers have gone to sleep.
-#include "engine/core/thread_pool.hpp"
+#include "volpar/engine/core/thread_pool.hpp"
 
 #include <gtest/gtest.h>
 

@@ -8,8 +8,8 @@
 #include <fstream>
 #include <thread>
 
-#include "engine/io/h5md_reader.hpp"
-#include "engine/run_loop.hpp"
+#include "volpar/engine/io/h5md_reader.hpp"
+#include "volpar/engine/run_loop.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace volpar {

@@ -7,13 +7,13 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/percentile.hpp"
+#include "volpar/engine/core/percentile.hpp"
 
-#include "engine/builders/triangle_mesh.hpp"
-#include "engine/core/source_shape.hpp"
-#include "engine/scene/scene_build.hpp"
-#include "engine/scene/scene_loader.hpp"
-#include "engine/world.hpp"
+#include "volpar/engine/builders/triangle_mesh.hpp"
+#include "volpar/engine/core/source_shape.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
+#include "volpar/engine/world.hpp"
 
 namespace volpar::test {
 

@@ -34,11 +34,11 @@
 #include <utility>
 #include <vector>
 
-#include "collision/aabb.hpp"
-#include "collision/broadphase.hpp"
-#include "engine/builders/fill.hpp"
-#include "engine/builders/shapes.hpp"
-#include "engine/world.hpp"
+#include "volpar/collision/aabb.hpp"
+#include "volpar/collision/broadphase.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/builders/shapes.hpp"
+#include "volpar/engine/world.hpp"
 
 namespace {
 

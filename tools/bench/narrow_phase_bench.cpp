@@ -40,12 +40,12 @@
 #include <utility>
 #include <vector>
 
-#include "collision/narrow_phase.hpp"
-#include "collision/particle_contacts.hpp"
-#include "collision/reference/fcl_adapter.hpp"
-#include "engine/builders/fill.hpp"
-#include "engine/builders/shapes.hpp"
-#include "engine/world.hpp"
+#include "volpar/collision/narrow_phase.hpp"
+#include "volpar/collision/particle_contacts.hpp"
+#include "volpar/collision/reference/fcl_adapter.hpp"
+#include "volpar/engine/builders/fill.hpp"
+#include "volpar/engine/builders/shapes.hpp"
+#include "volpar/engine/world.hpp"
 
 namespace {
 

@@ -68,9 +68,9 @@
 #include <utility>
 #include <vector>
 
-#include "engine/scene/scene_build.hpp"
-#include "engine/scene/scene_loader.hpp"
-#include "engine/world.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
+#include "volpar/engine/world.hpp"
 
 #ifndef VOLPAR_SOURCE_DIR
 #define VOLPAR_SOURCE_DIR "."
