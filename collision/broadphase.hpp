@@ -36,6 +36,8 @@ class Broadphase {
   [[nodiscard]] double margin() const { return margin_; }
 
   void addBody(BodyId id, const Aabb& tight, bool isStatic);
+  /// Adds a body with the fat box it had (a world restored from a checkpoint finds the same pairs).
+  void restoreBody(BodyId id, const Aabb& fat, bool isStatic);
   void removeBody(BodyId id);
   /// Updates a moving body's box; `displacement` [m] is its expected motion over the next step.
   void moveBody(BodyId id, const Aabb& tight, const Vec3& displacement);

@@ -46,6 +46,10 @@ class NarrowPhase {
   void run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out, ThreadPool* pool = nullptr);
   /// Forgets the patches kept for reuse (the next run computes every patch).
   void clearCache();
+  /// Puts the patches kept for reuse under "narrow_phase/..." (collision_state.cpp).
+  void saveCache(StateArchive& archive) const;
+  /// Takes them back; false (with the reason in `reader`) where they do not fit together.
+  bool restoreCache(StateReader& reader);
 
  private:
   /// What identifies a group from one step to the next: kind 0 = body pair (a, b), 1 = body a and plane b.

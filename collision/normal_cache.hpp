@@ -21,6 +21,7 @@
 #include "volpar/collision/normal_estimation.hpp"
 #include "volpar/engine/core/body_store.hpp"
 #include "volpar/engine/core/particle_store.hpp"
+#include "volpar/engine/core/state_archive.hpp"
 #include "volpar/engine/core/types.hpp"
 
 namespace volpar {
@@ -63,6 +64,11 @@ class NormalCache {
   [[nodiscard]] std::size_t size() const { return normals_.size(); }
   /// Entries in use.
   [[nodiscard]] std::size_t used() const { return normals_.size() - free_.size(); }
+
+  /// Puts the entries (in use and free) under "normals/..." (collision_state.cpp).
+  void save(StateArchive& archive) const;
+  /// Takes the entries back; false (with the reason in `reader`) where they do not fit together.
+  bool restore(StateReader& reader);
 
  private:
   struct Faces {

@@ -90,6 +90,8 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
   bonds_.assign(bonds.begin(), bonds.end());
   beams_.clear();
   stale_ = false;
+  removed_.clear();
+  factorisedAt_ = 0;
   if (bonds_.empty()) return false;
   const std::size_t n = body.particles.size();
   std::size_t maxId = 0;
@@ -142,6 +144,7 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
 bool BondLoads::factorise() {
   ldlt_.factorize(k_);
   stale_ = false;
+  factorisedAt_ = removed_.size();
   return ldlt_.info() == Eigen::Success;
 }
 
@@ -153,7 +156,20 @@ void BondLoads::remove(std::span<const std::size_t> entries) {
                  [&](Eigen::Index row, Eigen::Index col, double v) { k_.coeffRef(row, col) -= v; });
     beams_[k].active = false;
     stale_ = true;
+    removed_.push_back(static_cast<std::uint32_t>(k));
   }
+}
+
+bool BondLoads::replay(const BodyInfo& body, const ParticleStore& particles, const ConnectorStore& connectors,
+                       std::span<const ConnectorId> bonds, std::span<const std::uint32_t> removed, std::size_t factorisedAt) {
+  if (!build(body, particles, connectors, bonds) || factorisedAt > removed.size()) return false;
+  for (std::size_t i = 0; i < removed.size(); ++i) {
+    if (removed[i] >= beams_.size() || !beams_[removed[i]].active) return false;
+    const std::size_t entry = removed[i];
+    remove(std::span<const std::size_t>(&entry, 1));
+    if (i + 1 == factorisedAt && !factorise()) return false;
+  }
+  return true;
 }
 
 void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleStore& p, std::span<const Vec3> loads,

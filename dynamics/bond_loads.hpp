@@ -71,6 +71,15 @@ class BondLoads {
   void remove(std::span<const std::size_t> entries);
 
   [[nodiscard]] std::span<const ConnectorId> bonds() const { return bonds_; }
+  /// The entries removed since build(), in order, and how many of them were out when the frame was last
+  /// factorised: with bonds(), what makes the same frame again (replay), bit for bit.
+  [[nodiscard]] std::span<const std::uint32_t> removed() const { return removed_; }
+  [[nodiscard]] std::size_t factorisedAt() const { return factorisedAt_; }
+  /// Builds the frame from `bonds` and removes `removed` in order, factorising after the first
+  /// `factorisedAt` of them as the frame it replays was (a checkpoint's frame). False where an entry is out
+  /// of range or the factorisation fails.
+  bool replay(const BodyInfo& body, const ParticleStore& particles, const ConnectorStore& connectors,
+              std::span<const ConnectorId> bonds, std::span<const std::uint32_t> removed, std::size_t factorisedAt);
 
  private:
   struct Beam {
@@ -88,6 +97,8 @@ class BondLoads {
   Eigen::SparseMatrix<double> k_;     // the frame's stiffness now
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;  // of k_ when it was last factorised
   bool stale_ = false;                // k_ changed since
+  std::vector<std::uint32_t> removed_;  // entries removed since build(), in order
+  std::size_t factorisedAt_ = 0;        // removed_.size() when last factorised
   Eigen::VectorXd f_, u_, r_, z_, p_, q_;
 };
 

@@ -635,4 +635,56 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   std::swap(cache_, nextCache_);
 }
 
+void ContactSolver::saveWarmStart(StateArchive& archive) const {
+  // the entries the table finds, by lane: one per key (the first in solving order, as remember() kept it)
+  std::vector<std::uint32_t> lanes;
+  for (const std::uint32_t k : table_)
+    if (k != kEmpty) lanes.push_back(k);
+  std::sort(lanes.begin(), lanes.end());
+  std::vector<std::int64_t> keys;
+  std::vector<float> impulses;
+  for (const std::uint32_t k : lanes) {
+    keys.push_back(static_cast<std::int64_t>(cacheKeys_[k]));
+    const Cached& c = cache_[k];
+    impulses.insert(impulses.end(), {c.lambdaN, c.lambdaT[0], c.lambdaT[1], c.lambdaT[2], c.lambdaT[3]});
+  }
+  archive.put("solver/keys", std::span<const std::int64_t>(keys));
+  archive.put("solver/impulses", std::span<const float>(impulses), 5);
+  archive.putScalar("solver/table_bits", static_cast<std::int64_t>(table_.empty() ? 0 : tableBits_));
+}
+
+bool ContactSolver::restoreWarmStart(StateReader& r) {
+  const std::vector<std::int64_t> keys = r.get<std::int64_t>("solver/keys");
+  const std::vector<float> impulses = r.get<float>("solver/impulses", 5, keys.size());
+  const std::int64_t bits = r.i64("solver/table_bits");
+  if (!r.ok()) return false;
+  if (bits < 0 || bits > 31 || (bits == 0 && !keys.empty()) || (bits > 0 && 2 * keys.size() > (std::size_t{1} << bits))) {
+    r.fail("the checkpoint's warm-start table of 2^" + std::to_string(bits) + " entries cannot hold " +
+           std::to_string(keys.size()) + " keys");
+    return false;
+  }
+  cacheKeys_.assign(keys.size(), 0);
+  cache_.assign(keys.size(), Cached{});
+  table_.clear();
+  tableBits_ = static_cast<int>(bits);
+  if (bits > 0) table_.assign(std::size_t{1} << bits, kEmpty);
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    cacheKeys_[k] = static_cast<std::uint64_t>(keys[k]);
+    const float* f = impulses.data() + 5 * k;
+    cache_[k].lambdaN = f[0];
+    cache_[k].lambdaT = V4(f[1], f[2], f[3], f[4]);
+    for (std::uint64_t i = hashSlot(cacheKeys_[k], tableBits_);; i = (i + 1) & (table_.size() - 1)) {
+      if (table_[i] == kEmpty) {
+        table_[i] = static_cast<std::uint32_t>(k);
+        break;
+      }
+      if (cacheKeys_[table_[i]] == cacheKeys_[k]) {
+        r.fail("the checkpoint's warm-start keys repeat");
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
 }  // namespace volpar

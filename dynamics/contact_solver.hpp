@@ -25,6 +25,7 @@
 #include <span>
 #include <vector>
 
+#include "volpar/engine/core/state_archive.hpp"
 #include "volpar/engine/core/thread_pool.hpp"
 #include "volpar/engine/core/types.hpp"
 
@@ -96,6 +97,10 @@ class ContactSolver {
   /// Sum of the normal impulses applied in the last solve [N s].
   [[nodiscard]] double totalNormalImpulse() const { return totalNormalImpulse_; }
   [[nodiscard]] std::size_t warmStarted() const { return warmStarted_; }
+  /// Puts the impulses the next solve warm-starts from under "solver/..." (a checkpoint).
+  void saveWarmStart(StateArchive& archive) const;
+  /// Takes them back; false (with the reason in `reader`) where they do not fit together.
+  bool restoreWarmStart(StateReader& reader);
   /// Islands whose normal impulses the last solve found exactly (see SolverSettings::heavyIslandRatio).
   [[nodiscard]] std::size_t heavyIslandsSolved() const { return heavyIslandsSolved_; }
   /// The impulse [N s] each point of the last solve applied to its B side (A got the opposite), world.

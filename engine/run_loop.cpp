@@ -61,6 +61,7 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
   auto lastSidecar = start;
   const int every = std::max(1, options.every);
   std::int64_t lastWritten = world.stepIndex();
+  const std::int64_t endStep = world.stepIndex() + options.steps;
   Error failure;
   bool failed = false;
   for (std::int64_t i = 0; i < options.steps; ++i) {
@@ -101,6 +102,9 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
       if (options.killAfterFrames > 0 && static_cast<std::int64_t>(writer->frames()) >= options.killAfterFrames)
         std::raise(SIGKILL);
     }
+    if (writer && options.checkpointEvery > 0 && (world.stepIndex() % options.checkpointEvery == 0 || last)) {
+      if (auto ok = writer->writeCheckpoint(world, endStep); !ok) return keepPartial(ok.error());
+    }
     const auto now = Clock::now();
     if (options.progress && now - lastProgress > std::chrono::milliseconds(100)) {
       options.progress(i + 1, options.steps);
@@ -114,6 +118,9 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
   }
   if (writer && summary.interrupted && world.stepIndex() != lastWritten) {
     if (auto ok = writer->writeFrame(world); !ok) return keepPartial(ok.error());
+  }
+  if (writer && summary.interrupted && options.checkpointEvery > 0) {
+    if (auto ok = writer->writeCheckpoint(world, endStep); !ok) return keepPartial(ok.error());
   }
   summary.wallSeconds = std::chrono::duration<double>(Clock::now() - start).count();
   summary.stepsPerSecond = summary.stepSeconds > 0.0 ? static_cast<double>(summary.steps) / summary.stepSeconds : 0.0;

@@ -25,6 +25,9 @@ struct RunOptions {
   std::function<void(std::int64_t, std::int64_t)> progress;
   /// When set and it becomes true, the run stops after the current step and closes the file cleanly.
   const std::atomic<bool>* stop = nullptr;
+  /// When > 0: a checkpoint (the whole state, H5mdWriter::writeCheckpoint) after every step whose index is a
+  /// multiple of it, after the last step and when interrupted; the file keeps the latest.
+  std::int64_t checkpointEvery = 0;
   /// Testing aid: when > 0, the process kills itself (SIGKILL, no cleanup) right after writing this many
   /// frames, to show that a killed run leaves a readable file.
   std::int64_t killAfterFrames = 0;

@@ -30,6 +30,7 @@
 #include "volpar/engine/core/connector_store.hpp"
 #include "volpar/engine/core/material.hpp"
 #include "volpar/engine/core/particle_store.hpp"
+#include "volpar/engine/core/state_archive.hpp"
 #include "volpar/engine/core/status.hpp"
 #include "volpar/engine/core/step_stats.hpp"
 #include "volpar/engine/world_settings.hpp"
@@ -174,6 +175,19 @@ class World {
   [[nodiscard]] ParticleStore& editParticles() { return particles_; }
   /// Recomputes particle positions and velocities of rigid bodies from their body states.
   void syncParticles();
+
+  /// Puts everything the next step depends on into `archive` (a checkpoint; world_state.cpp): the stores,
+  /// the normal cache, the broken connectors' traces, the bond frames' history, the contacts and patches of
+  /// the current state, the narrow phase's reuse cache, the broadphase's fat boxes and the solver's
+  /// warm-starting impulses. Caches that only make a step faster, and give the same results without their
+  /// history (the particle contacts' candidate lists), are left out.
+  void saveState(StateArchive& archive) const;
+  /// Takes a saved state back into a world built from the same scene (the same settings, materials, planes
+  /// and bodies as the saving world had at its start): its later steps are bit for bit those of the world
+  /// that saved it, for any thread count. A state that does not fit the world (other counts, indices out of
+  /// range, an inconsistent cache) is refused with the reason; a world whose restore failed is to be
+  /// discarded.
+  Status restoreState(const StateArchive& archive);
 
  private:
   void integrateVelocities();

@@ -37,6 +37,8 @@ struct RunArgs {
   int threads = 1;
   std::int64_t seed = -1;    ///< -1: the scene's
   std::int64_t killAfterFrames = 0;
+  std::int64_t checkpointEvery = 0;  ///< 0: no checkpoints
+  std::string resume;                ///< a trajectory whose checkpoint the run continues from
   SceneLimits limits;
 };
 

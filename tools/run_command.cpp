@@ -9,6 +9,7 @@
 #include <iostream>
 #include <optional>
 
+#include "volpar/engine/io/h5md_reader.hpp"
 #include "volpar/engine/io/xdmf_writer.hpp"
 #include "volpar/engine/run_loop.hpp"
 #include "volpar/engine/scene/scene_build.hpp"
@@ -56,24 +57,68 @@ std::optional<Error> refuseOverwrite(const std::string& output, const std::strin
 
 }  // namespace
 
+/// The default name of a resumed run's trajectory: `pile.partial.h5` at step 1200 -> `pile-from-1200.h5`
+/// (and a resumed run's own `pile-from-1200.h5` at step 1800 -> `pile-from-1800.h5`).
+std::string resumedName(const std::string& resumed, std::int64_t step) {
+  std::string stem = std::filesystem::path(resumed).stem().string();
+  constexpr std::string_view kPartial = ".partial";
+  if (stem.size() > kPartial.size() && stem.ends_with(kPartial)) stem.resize(stem.size() - kPartial.size());
+  if (const std::size_t from = stem.rfind("-from-"); from != std::string::npos && from > 0 &&
+                                                    stem.find_first_not_of("0123456789", from + 6) == std::string::npos &&
+                                                    from + 6 < stem.size())
+    stem.resize(from);
+  return stem + "-from-" + std::to_string(step) + ".h5";
+}
+
 int run(const RunArgs& args) {
-  auto desc = loadScene(args.scene, args.limits.load());
+  if (args.scene.empty() && args.resume.empty()) return fail(Error{"", 0, 0, "expected a scene file, or --resume FILE"});
+  // a resumed run: the scene as it was run, from the trajectory, and the state of its checkpoint
+  std::optional<Checkpoint> checkpoint;
+  if (!args.resume.empty()) {
+    auto reader = H5mdReader::open(args.resume);
+    if (!reader) return fail(reader.error());
+    auto cp = reader.value()->checkpoint();
+    if (!cp) return fail(cp.error());
+    checkpoint = std::move(cp.value());
+  }
+  auto desc = checkpoint ? parseScene(checkpoint->sceneText, checkpoint->sceneFile, args.limits.load())
+                         : loadScene(args.scene, args.limits.load());
   if (!desc) return fail(desc.error());
-  if (args.seed >= 0) desc->seed = static_cast<std::uint64_t>(args.seed);
+  if (checkpoint) desc->seed = static_cast<std::uint64_t>(checkpoint->seed);
+  else if (args.seed >= 0) desc->seed = static_cast<std::uint64_t>(args.seed);
   auto built = buildScene(*desc, args.limits.build());
   if (!built) return fail(built.error());
   World& world = built->world;
   world.setThreads(args.threads);
+  if (checkpoint) {
+    if (auto restored = world.restoreState(checkpoint->state); !restored) {
+      Error e = restored.error();
+      e.file = args.resume;
+      e.message = "cannot resume from the checkpoint of step " + std::to_string(checkpoint->step) + ": " + e.message;
+      return fail(e);
+    }
+  }
 
   RunOptions options;
-  const auto steps = stepsFor(desc->stepCount(), desc->dt, args.steps, args.duration);
-  if (!steps) return fail(steps.error());
-  options.steps = steps.value();
-  options.every = args.every > 0 ? args.every : desc->outputEvery;
+  if (checkpoint && args.steps == 0 && args.duration == 0.0) {
+    options.steps = checkpoint->endStep - checkpoint->step;
+    if (options.steps == 0)
+      return fail(Error{args.resume, 0, 0, "the run reached its end (step " + std::to_string(checkpoint->endStep) +
+                                               ") at this checkpoint; give --steps or --duration to go on from it"});
+  } else {
+    const auto steps = stepsFor(desc->stepCount(), desc->dt, args.steps, args.duration);
+    if (!steps) return fail(steps.error());
+    options.steps = steps.value();
+  }
+  options.every = args.every > 0 ? args.every : checkpoint ? checkpoint->outputEvery : desc->outputEvery;
+  options.checkpointEvery = args.checkpointEvery;
+  const std::string input = checkpoint ? args.resume : args.scene;
   if (!args.noOutput) {
-    options.output = args.output.empty() ? std::filesystem::path(args.scene).stem().string() + ".h5" : args.output;
+    options.output = !args.output.empty() ? args.output
+                     : checkpoint         ? resumedName(args.resume, checkpoint->step)
+                                          : std::filesystem::path(args.scene).stem().string() + ".h5";
     for (const std::string& out : {options.output, partialPath(options.output)})
-      if (const auto refused = refuseOverwrite(out, args.scene, built->meshFiles)) return fail(*refused);
+      if (const auto refused = refuseOverwrite(out, input, built->meshFiles)) return fail(*refused);
   }
   if (isatty(STDERR_FILENO)) options.progress = progressBar;
   options.stop = &gStop;
@@ -83,7 +128,7 @@ int run(const RunArgs& args) {
 
   TrajectoryMeta meta;
   meta.sceneName = desc->name;
-  meta.sceneFile = args.scene;
+  meta.sceneFile = checkpoint ? checkpoint->sceneFile : args.scene;
   meta.sceneText = desc->text;
   meta.extraFiles = built->meshFiles;
   meta.outputEvery = options.every;
@@ -145,7 +190,8 @@ int run(const RunArgs& args) {
     j.end();
     std::cout << j.str() << std::endl;
   } else {
-    std::printf("scene        %s (%s)\n", desc->name.c_str(), args.scene.c_str());
+    std::printf("scene        %s (%s)\n", desc->name.c_str(), input.c_str());
+    if (checkpoint) std::printf("resumed      from the checkpoint of step %lld\n", static_cast<long long>(checkpoint->step));
     std::printf("bodies       %zu, particles %zu\n", s.bodies, s.particles);
     for (const std::string& note : built->notes) std::printf("note         %s\n", note.c_str());
     std::printf("steps        %lld (t = %.6g s)%s\n", static_cast<long long>(s.steps), world.time(),

@@ -55,9 +55,10 @@ int main(int argc, char** argv) {
 
   RunArgs run;
   CLI::App* runCmd = app.add_subcommand("run", "Run a scene headless and write an H5MD trajectory");
-  runCmd->add_option("scene", run.scene, "Scene file (YAML)")->required()->check(CLI::ExistingFile);
-  auto* output =
-      runCmd->add_option("-o,--output", run.output, "Trajectory file (default: <scene name>.h5 in the current folder)");
+  auto* sceneArg = runCmd->add_option("scene", run.scene, "Scene file (YAML); not with --resume")->check(CLI::ExistingFile);
+  auto* output = runCmd->add_option("-o,--output", run.output,
+                                    "Trajectory file (default: the scene file's name with .h5, in the current folder; with --resume "
+                                    "FILE: FILE's name less .partial, with -from-<step>.h5)");
   runCmd->add_flag("--no-output", run.noOutput, "Do not write a trajectory")->excludes(output);
   auto* steps = runCmd->add_option("--steps", run.steps, "Number of steps (overrides the scene)")->check(wholeNumber(1, kMaxSteps));
   runCmd->add_option("--duration", run.duration, "Simulated time [s] (overrides the scene)")
@@ -65,8 +66,19 @@ int main(int argc, char** argv) {
       ->excludes(steps);
   runCmd->add_option("--every", run.every, "Write a frame every K steps (overrides the scene)")
       ->check(wholeNumber(1, 2147483647));
+  runCmd->add_option("--checkpoint-every", run.checkpointEvery,
+                     "Write a checkpoint (the whole state) into the trajectory every STEPS steps, at the end and when "
+                     "interrupted; the file keeps the latest")
+      ->check(wholeNumber(1, kMaxSteps));
+  auto* resume = runCmd->add_option("--resume", run.resume,
+                                    "Continue the run whose trajectory FILE holds a checkpoint, from it, to the step that run "
+                                    "was to end at (or --steps / --duration more), into a new trajectory; bit for bit the "
+                                    "run that was not stopped")
+                     ->check(CLI::ExistingFile)
+                     ->excludes(sceneArg);
   runCmd->add_option("--seed", run.seed, "Seed of what is drawn at random, bond strengths (overrides the scene's 'seed')")
-      ->check(wholeNumber(0, 9007199254740992));
+      ->check(wholeNumber(0, 9007199254740992))
+      ->excludes(resume);
   runCmd->add_flag("--json", run.json, "Print one JSON object with the summary on stdout");
   runCmd->add_option("--threads", run.threads, "Worker threads for the step (default 1; the results are the same)")
       ->check(wholeNumber(1, 256));

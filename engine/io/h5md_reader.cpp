@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <optional>
 
 namespace volpar {
@@ -208,6 +209,7 @@ struct H5mdReader::Impl {
   hid_t file = H5I_INVALID_HID;
   std::string path;
   std::uint64_t limit = 0;  ///< the most bytes a dataset of this file can hold (compression included)
+  std::uint64_t fileSize = 0;
 };
 
 H5mdReader::H5mdReader(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -226,6 +228,7 @@ Result<std::unique_ptr<H5mdReader>> H5mdReader::open(const std::string& path) {
   if (ec) return Error{path, 0, 0, "cannot read the file's size: " + ec.message()};
   // deflate packs at most about 1032 : 1; room for that and for small files
   impl->limit = static_cast<std::uint64_t>(size) * 1100u + (std::uint64_t{1} << 20);
+  impl->fileSize = static_cast<std::uint64_t>(size);
   impl->file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (impl->file < 0) return Error{path, 0, 0, "cannot open HDF5 file"};
   if (H5Lexists(impl->file, "h5md", H5P_DEFAULT) <= 0) {
@@ -351,6 +354,88 @@ Result<std::vector<Quat>> H5mdReader::bodyOrientations(std::size_t frame) const 
   } catch (const ReadFailure& e) {
     return Error{impl_->path, 0, 0, e.what};
   }
+}
+
+namespace {
+
+/// The datasets below a checkpoint's group, by their paths in it.
+herr_t collectDataset(hid_t group, const char* name, const H5L_info_t* info, void* out) {
+  if (info->type != H5L_TYPE_HARD) return 0;
+  H5O_info_t object;
+  if (H5Oget_info_by_name(group, name, &object, H5P_DEFAULT) < 0) return -1;
+  if (object.type == H5O_TYPE_DATASET) static_cast<std::vector<std::string>*>(out)->emplace_back(name);
+  return 0;
+}
+
+/// One dataset of a checkpoint as an archive array: numbers of one of the archive's types, one or two
+/// dimensions, stored whole and uncompressed (its size on disk is its size).
+StateArchive::Array readStateArray(hid_t group, const std::string& name, std::uint64_t fileSize) {
+  const std::string where = "/checkpoint/.../" + name;
+  Handle ds(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose, "cannot open dataset " + where);
+  Handle type(H5Dget_type(ds.get()), H5Tclose, "datatype of " + where);
+  const H5T_class_t c = H5Tget_class(type.get());
+  const std::size_t size = H5Tget_size(type.get());
+  StateArchive::Array a;
+  a.name = name;
+  hid_t memType = H5T_NATIVE_DOUBLE;
+  if (c == H5T_FLOAT && size == 8) a.type = StateArchive::Type::F64;
+  else if (c == H5T_FLOAT && size == 4) { a.type = StateArchive::Type::F32; memType = H5T_NATIVE_FLOAT; }
+  else if (c == H5T_INTEGER && size == 8 && H5Tget_sign(type.get()) == H5T_SGN_2) { a.type = StateArchive::Type::I64; memType = H5T_NATIVE_INT64; }
+  else if (c == H5T_INTEGER && size == 4 && H5Tget_sign(type.get()) == H5T_SGN_NONE) { a.type = StateArchive::Type::U32; memType = H5T_NATIVE_UINT32; }
+  else if (c == H5T_INTEGER && size == 1 && H5Tget_sign(type.get()) == H5T_SGN_NONE) { a.type = StateArchive::Type::U8; memType = H5T_NATIVE_UINT8; }
+  else throw ReadFailure{where + " holds values of a type no checkpoint has"};
+  const std::vector<hsize_t> d = dims(ds.get());
+  if (d.empty() || d.size() > 2 || (d.size() == 2 && d[1] == 0))
+    throw ReadFailure{where + " has shape " + shapeText(d) + "; expected [n] or [n, k]"};
+  a.width = d.size() == 2 ? static_cast<std::size_t>(d[1]) : 1;
+  const long double bytes = static_cast<long double>(d[0]) * static_cast<long double>(a.width) * static_cast<long double>(size);
+  Handle plist(H5Dget_create_plist(ds.get()), H5Pclose, "creation properties of " + where);
+  const H5D_layout_t layout = H5Pget_layout(plist.get());
+  if (bytes > static_cast<long double>(fileSize) || (layout != H5D_CONTIGUOUS && layout != H5D_COMPACT) ||
+      (bytes > 0 && static_cast<long double>(H5Dget_storage_size(ds.get())) != bytes))
+    throw ReadFailure{where + " claims shape " + shapeText(d) + ", which is not stored whole in the file"};
+  a.bytes.resize(static_cast<std::size_t>(bytes));
+  if (!a.bytes.empty() && H5Dread(ds.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.bytes.data()) < 0)
+    throw ReadFailure{"cannot read " + where};
+  return a;
+}
+
+}  // namespace
+
+Result<Checkpoint> H5mdReader::checkpoint() const {
+  const hid_t f = impl_->file;
+  const std::uint64_t limit = impl_->limit;
+  Checkpoint cp;
+  try {
+    const std::optional<std::int64_t> step = readCountAttr(f, "checkpoint", "step");
+    if (!step)
+      return Error{impl_->path, 0, 0, "the trajectory has no checkpoint (write one with volpar run --checkpoint-every STEPS)"};
+    cp.step = *step;
+    const std::string name = "checkpoint/step_" + std::to_string(cp.step);
+    if (H5Lexists(f, name.c_str(), H5P_DEFAULT) <= 0)
+      throw ReadFailure{"/checkpoint@step is " + std::to_string(cp.step) + " but there is no /" + name};
+    cp.sceneName = readStringAttr(f, "parameters", "scene_name", limit);
+    cp.sceneFile = readStringAttr(f, "parameters", "scene_file", limit);
+    cp.sceneText = readStrings(f, "parameters/scene", true, limit).at(0);
+    const std::optional<std::int64_t> seed = readCountAttr(f, "parameters", "seed");
+    const std::optional<std::int64_t> every = readCountAttr(f, "parameters", "output_every");
+    const std::optional<std::int64_t> end = readCountAttr(f, name, "end_step");
+    if (!seed || !every || !end || *every < 1 || *every > std::numeric_limits<int>::max() || *end < cp.step)
+      throw ReadFailure{"/parameters@seed, /parameters@output_every or /" + name + "@end_step is missing or out of range"};
+    cp.seed = *seed;
+    cp.outputEvery = static_cast<int>(*every);
+    cp.endStep = *end;
+    Handle group(H5Gopen2(f, name.c_str(), H5P_DEFAULT), H5Gclose, "cannot open /" + name);
+    std::vector<std::string> names;
+    if (H5Lvisit(group.get(), H5_INDEX_NAME, H5_ITER_INC, collectDataset, &names) < 0)
+      throw ReadFailure{"cannot list /" + name};
+    constexpr std::size_t kMaxArrays = 1024;
+    if (names.size() > kMaxArrays) throw ReadFailure{"/" + name + " holds " + std::to_string(names.size()) + " datasets; a checkpoint has fewer than " + std::to_string(kMaxArrays)};
+    for (const std::string& n : names) cp.state.add(readStateArray(group.get(), n, impl_->fileSize));
+  } catch (const ReadFailure& e) {
+    return Error{impl_->path, 0, 0, e.what};
+  }
+  return cp;
 }
 
 }  // namespace volpar

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "volpar/engine/core/state_archive.hpp"
 #include "volpar/engine/core/status.hpp"
 #include "volpar/engine/core/types.hpp"
 
@@ -31,6 +32,18 @@ struct TrajectorySummary {
   std::vector<std::int64_t> patchCount;
 };
 
+/// A trajectory's checkpoint (H5mdWriter::writeCheckpoint) and what it takes to build its world again.
+struct Checkpoint {
+  std::int64_t step = 0;           ///< the step the state is of
+  std::int64_t endStep = 0;        ///< the step the run that wrote it was to end at
+  std::string sceneName;
+  std::string sceneFile;           ///< the scene file's path as the run was given it
+  std::string sceneText;           ///< the scene as it was run
+  std::int64_t seed = 0;           ///< the seed the run used
+  int outputEvery = 1;             ///< steps between frames
+  StateArchive state;              ///< World::saveState's arrays
+};
+
 class H5mdReader {
  public:
   [[nodiscard]] static Result<std::unique_ptr<H5mdReader>> open(const std::string& path);
@@ -43,6 +56,8 @@ class H5mdReader {
   [[nodiscard]] Result<std::vector<Vec3>> positions(std::size_t frame) const;
   /// Body centres of mass of frame t [m], [B].
   [[nodiscard]] Result<std::vector<Vec3>> bodyPositions(std::size_t frame) const;
+  /// The file's checkpoint; an error where it has none or it cannot be read whole.
+  [[nodiscard]] Result<Checkpoint> checkpoint() const;
   /// Body shape-frame orientations of frame t, [B].
   [[nodiscard]] Result<std::vector<Quat>> bodyOrientations(std::size_t frame) const;
 

@@ -968,6 +968,73 @@ Status H5mdWriter::writeBreakEvents(const World& world) {
   return okStatus();
 }
 
+Status H5mdWriter::writeCheckpoint(const World& world, std::int64_t endStep) {
+  if (!impl_ || !impl_->file.valid()) return Error{path_, 0, 0, "trajectory is closed"};
+  const std::int64_t step = world.stepIndex();
+  if (step == checkpointStep_) return okStatus();
+  StateArchive archive;
+  world.saveState(archive);
+  const hid_t f = impl_->file.get();
+  // as for frames: begun only with room for it twice over and for closing the file
+  hsize_t sizeBefore = 0;
+  if (H5Fget_filesize(f, &sizeBefore) < 0) return Error{path_, 0, 0, "cannot read the trajectory's size"};
+  const std::uint64_t needed = 2 * archive.bytes() + (std::uint64_t{1} << 20);
+  if (const std::uint64_t room = roomToGrow(path_, sizeBefore); room < needed)
+    return Error{path_, 0, 0, "not enough room for the checkpoint of step " + std::to_string(step) + ": the disk or the file-size limit leaves " +
+                                  std::to_string(room) + " more bytes and it may need " + std::to_string(needed)};
+  try {
+    Hid top = H5Lexists(f, "checkpoint", H5P_DEFAULT) > 0 ? checked(H5Gopen2(f, "checkpoint", H5P_DEFAULT), H5Gclose, "group checkpoint")
+                                                           : group(f, "checkpoint");
+    const std::string name = "step_" + std::to_string(step);
+    if (H5Lexists(top.get(), name.c_str(), H5P_DEFAULT) > 0) check(H5Ldelete(top.get(), name.c_str(), H5P_DEFAULT), "drop " + name);
+    {
+      Hid g = group(top.get(), name);
+      // contiguous, uncompressed, written once: a reader can tell its size from its shape
+      for (const StateArchive::Array& a : archive.arrays()) {
+        if (const std::size_t slash = a.name.rfind('/'); slash != std::string::npos) {
+          const std::string folder = a.name.substr(0, slash);
+          if (H5Lexists(g.get(), folder.c_str(), H5P_DEFAULT) <= 0) group(g.get(), folder);
+        }
+        const hid_t where = g.get();
+        const std::string& leaf = a.name;
+        std::vector<hsize_t> dims{a.rows()};
+        if (a.width > 1) dims.push_back(a.width);
+        hid_t fileType = H5T_IEEE_F64LE, memType = H5T_NATIVE_DOUBLE;
+        switch (a.type) {
+          case StateArchive::Type::F64: break;
+          case StateArchive::Type::F32: fileType = H5T_IEEE_F32LE; memType = H5T_NATIVE_FLOAT; break;
+          case StateArchive::Type::I64: fileType = H5T_STD_I64LE; memType = H5T_NATIVE_INT64; break;
+          case StateArchive::Type::U32: fileType = H5T_STD_U32LE; memType = H5T_NATIVE_UINT32; break;
+          case StateArchive::Type::U8: fileType = H5T_STD_U8LE; memType = H5T_NATIVE_UINT8; break;
+        }
+        Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose, "space");
+        Hid dcpl = datasetPlist();
+        Hid ds = checked(H5Dcreate2(where, leaf.c_str(), fileType, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
+                         "dataset " + a.name);
+        if (!a.bytes.empty()) check(H5Dwrite(ds.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.bytes.data()), "write " + a.name);
+      }
+      attrScalar<std::int64_t>(g.get(), "step", step);
+      attrScalar<double>(g.get(), "time", world.time());
+      attrScalar<std::int64_t>(g.get(), "frames", static_cast<std::int64_t>(frames()));
+      attrScalar<std::int64_t>(g.get(), "end_step", endStep);
+    }
+    check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+    // the new checkpoint is on disk: make it the file's, then let the old one go
+    if (H5Aexists(top.get(), "step") > 0) check(H5Adelete(top.get(), "step"), "drop /checkpoint@step");
+    attrScalar<std::int64_t>(top.get(), "step", step);
+    check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+    if (checkpointStep_ >= 0) {
+      const std::string old = "step_" + std::to_string(checkpointStep_);
+      if (H5Lexists(top.get(), old.c_str(), H5P_DEFAULT) > 0) check(H5Ldelete(top.get(), old.c_str(), H5P_DEFAULT), "drop " + old);
+      check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+    }
+  } catch (const H5Failure& e) {
+    return Error{path_, 0, 0, "cannot write the checkpoint of step " + std::to_string(step) + " (" + e.what + ")"};
+  }
+  checkpointStep_ = step;
+  return okStatus();
+}
+
 Status H5mdWriter::writeSidecar(const std::string& h5Path) const {
   XdmfFrames f;
   f.h5Path = h5Path;

@@ -33,6 +33,14 @@ class H5mdWriter {
 
   /// Appends the world's current state as one frame and flushes the file.
   [[nodiscard]] Status writeFrame(const World& world);
+  /// Writes the world's whole state (World::saveState) as the checkpoint of its step, under
+  /// /checkpoint/step_<N>, then makes it the file's checkpoint (/checkpoint@step) and drops the one before:
+  /// a run killed while it writes keeps the earlier checkpoint. Call it after writeFrame, so that the frames
+  /// and breakage records up to the checkpoint are complete in the file. `endStep`: the step the run is to
+  /// end at (a resumed run goes on to it).
+  [[nodiscard]] Status writeCheckpoint(const World& world, std::int64_t endStep);
+  /// The step of the last checkpoint written (-1: none).
+  [[nodiscard]] std::int64_t checkpointStep() const { return checkpointStep_; }
   /// Appends the connectors that broke in the world's last step to /breakage (written with the next flush).
   [[nodiscard]] Status writeBreakEvents(const World& world);
   /// Writes the XDMF sidecar of `h5Path` (this file, or the name it was renamed to) for the frames so far
@@ -58,6 +66,7 @@ class H5mdWriter {
   std::vector<std::int64_t> steps_;
   std::vector<std::int64_t> patchOffsets_;  // per frame: its first row in /patches
   std::vector<std::int64_t> patchCounts_;   // per frame: its patches
+  std::int64_t checkpointStep_ = -1;
 };
 
 }  // namespace volpar
