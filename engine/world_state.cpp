@@ -1,6 +1,8 @@
 // World::saveState and World::restoreState: the world's checkpoint (engine/core/state_archive.hpp).
 
 #include <algorithm>
+#include <cmath>
+#include <cstring>
 #include <string>
 
 #include "volpar/collision/collision_state.hpp"
@@ -320,6 +322,28 @@ Status World::restoreState(const StateArchive& archive) {
     c.b[i] = ParticleId(cb[i]);
     c.kind[i] = static_cast<ConnectorKind>(kind[i]);
   }
+  // what a run never changes must be the scene's (a checkpoint of another scene, seed or version is refused);
+  // the state must be finite and within the world's bounds (a step could not survive it)
+  const auto sameBits = [](const std::vector<double>& x, const std::vector<double>& y) {
+    return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(double)) == 0);
+  };
+  if (r.ok() && (!sameBits(p.radius, particles_.radius) || !sameBits(p.mass, particles_.mass) ||
+                 !sameBits(p.ownInertia, particles_.ownInertia) || !sameBits(p.invMass, particles_.invMass)))
+    r.fail("the checkpoint's particles have other radii or masses than the scene's");
+  if (r.ok() && (!sameBits(c.restLength, connectors_.restLength) || !sameBits(c.stiffness, connectors_.stiffness) ||
+                 !sameBits(c.damping, connectors_.damping) || !sameBits(c.breakLimit, connectors_.breakLimit) ||
+                 !sameBits(c.compressionLimit, connectors_.compressionLimit) || !sameBits(c.bondRadius, connectors_.bondRadius) ||
+                 !sameBits(c.youngsModulus, connectors_.youngsModulus) || !sameBits(c.poissonRatio, connectors_.poissonRatio) ||
+                 !sameBits(c.tensileStrength, connectors_.tensileStrength) || !sameBits(c.shearStrength, connectors_.shearStrength)))
+    r.fail("the checkpoint's connectors are not the scene's (another scene, seed or version)");
+  constexpr double kWorldLimit = 1e9;  // [m], as World::addBody
+  const auto bounded = [&](const std::vector<Vec3>& xs) {
+    return std::all_of(xs.begin(), xs.end(), [&](const Vec3& x) { return x.allFinite() && x.cwiseAbs().maxCoeff() <= kWorldLimit; });
+  };
+  if (r.ok() && (!bounded(p.position) || !bounded(p.local) || !bounded(p.velocity) || !bounded(direction)))
+    r.fail("the checkpoint has particles at non-finite or too distant positions, or with non-finite velocities");
+  for (std::size_t i = 0; r.ok() && i < nc; ++i)
+    if (c.broken[i] > 1) r.fail("checkpoint connector " + std::to_string(i) + " is neither broken nor whole");
   p.body.resize(np);
   p.normalIndex.resize(np);
   for (std::size_t i = 0; i < np; ++i) {
@@ -362,6 +386,14 @@ Status World::restoreState(const StateArchive& archive) {
   }
   for (std::size_t i = 0; i < np && r.ok(); ++i)
     if (!owned[i]) r.fail("checkpoint particle " + std::to_string(i) + " belongs to no body");
+  for (std::size_t i = 0; i < nb && r.ok(); ++i) {
+    const bool finite = position[i].allFinite() && linear[i].allFinite() && angular[i].allFinite() && invInertia[i].allFinite() &&
+                        inertia[i].allFinite() && com[i].allFinite() && orientation[i].coeffs().allFinite() &&
+                        principal[i].coeffs().allFinite() && invInertiaWorld[i].allFinite() && residual[i].allFinite() &&
+                        std::isfinite(invMass[i]) && std::isfinite(mass[i]) &&
+                        (!alive[i] || (boxLo[i].allFinite() && boxHi[i].allFinite() && (boxLo[i].array() <= boxHi[i].array()).all()));
+    if (!finite) r.fail("checkpoint body " + std::to_string(i) + " has a non-finite state");
+  }
 
   // the normal cache (its entries are what the particles' normal indices point into)
   NormalCache normals;
@@ -379,6 +411,9 @@ Status World::restoreState(const StateArchive& archive) {
   for (std::size_t k = 0; k < proxied.size() && r.ok(); ++k)
     if (proxied[k] >= nb || !alive[proxied[k]] || (k > 0 && proxied[k] <= proxied[k - 1]))
       r.fail("the checkpoint's broadphase holds a body that is not alive");
+  for (std::size_t k = 0; k < proxied.size() && r.ok(); ++k)
+    if (!fatLo[k].allFinite() || !fatHi[k].allFinite() || !(fatLo[k].array() <= fatHi[k].array()).all())
+      r.fail("the checkpoint's broadphase has a box that is not finite");
   const std::vector<std::uint32_t> framed = r.get<std::uint32_t>("bond_frames/body");
   const std::vector<std::vector<ConnectorId>> frameBonds = getLists<ConnectorTag>(r, "bond_frames/bonds", framed.size(), nc);
   const std::vector<std::uint32_t> removedAll = r.get<std::uint32_t>("bond_frames/removed");

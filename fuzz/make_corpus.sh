@@ -6,7 +6,7 @@
 # scene/       every scene under scenes/, with mesh shapes replaced by boxes (the fuzzer's scene folder has
 #              no meshes), plus the hand-written seeds in fuzz/seeds/ (kept as they are)
 # obj/         the OBJ files under scenes/ and tests/data/ (each content once) and in fuzz/seeds/
-# trajectory/  short runs (20 steps, a frame every 10) of small scenes, rewritten with h5repack into
+# trajectory/  short runs (20 steps, a frame every 10; one with a checkpoint) of small scenes, rewritten with h5repack into
 #              contiguous datasets (HDF5's original format and its latest one) so that each is a few tens
 #              of KB, and two reduced to the objects the reader reads
 # Needs h5repack and h5copy (Debian's hdf5-tools).
@@ -47,10 +47,12 @@ run "$root/scenes/examples/bounce.yaml" bounce
 run "$root/scenes/examples/jelly.yaml" jelly
 run "$root/scenes/regression/dzhanibekov.yaml" dzhanibekov
 run "$root/fuzz/seeds/small_build.yaml" small
+"$volpar" run "$root/fuzz/seeds/small_build.yaml" -o "$work/small_checkpoint.h5" --steps 20 --every 10 --checkpoint-every 10 >/dev/null
 h5repack -L -l CONTI "$work/bounce.h5" "$corpus/trajectory/bounce_latest.h5"
 h5repack -L -l CONTI "$work/jelly.h5" "$corpus/trajectory/jelly_latest.h5"
 h5repack -l CONTI "$work/dzhanibekov.h5" "$corpus/trajectory/dzhanibekov_original.h5"
 h5repack -L -l CONTI "$work/small.h5" "$corpus/trajectory/small_latest.h5"
+h5repack -L -l CONTI "$work/small_checkpoint.h5" "$corpus/trajectory/small_checkpoint.h5"
 # what the reader reads, and nothing else
 read_objects=(/h5md /parameters /particles/all/position /particles/all/radius /particles/bodies/name
               /particles/bodies/position /particles/bodies/orientation /observables/kinetic_energy

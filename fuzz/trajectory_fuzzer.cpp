@@ -2,7 +2,9 @@
 // so each input is written to one temporary file per process ($TMPDIR or /tmp,
 // volpar-trajectory-fuzz-<pid>.h5, removed at exit; a crash leaves it) and opened with
 // H5mdReader::open; when that succeeds, summary() and the particle positions, body positions and body
-// orientations of the first, the second and the last frame (and of one past the last) are read. An error
+// orientations of the first, the second and the last frame (and of one past the last) are read; then the
+// checkpoint, and where it reads, the world of its scene is built (within 64 MiB) and the checkpoint restored
+// into it (World::restoreState checks every array against the world). An error
 // is a normal outcome; a crash, a sanitizer report, a hang, running out of memory or an HDF5 object left
 // open after the reader is gone is a finding.
 //
@@ -30,6 +32,8 @@
 #include <vector>
 
 #include "volpar/engine/io/h5md_reader.hpp"
+#include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/scene/scene_loader.hpp"
 
 namespace {
 
@@ -94,6 +98,18 @@ void readTrajectory(const std::string& path) {
   if (frames > 0) wanted.push_back(frames - 1);
   wanted.push_back(frames);  // one past the last: must be refused, not read
   for (const std::size_t f : wanted) readFrame(**reader, f);
+  auto checkpoint = (*reader)->checkpoint();
+  if (!checkpoint) {
+    (void)checkpoint.error().toString();
+    return;
+  }
+  auto desc = volpar::parseScene(checkpoint->sceneText, scratchPath());
+  if (!desc) return;
+  volpar::BuildOptions build;
+  build.memoryLimit = std::uint64_t{64} << 20;
+  auto built = volpar::buildScene(*desc, build);
+  if (!built) return;
+  if (auto restored = built->world.restoreState(checkpoint->state); restored) static_cast<void>(built->world.step());
 }
 
 }  // namespace
