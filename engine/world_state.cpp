@@ -103,6 +103,23 @@ void takeCounters(const std::vector<std::int64_t>& c, StepStats& s) {
   for (std::size_t& n : s.patchesByCase) n = next();
 }
 
+/// FNV-1a over the bytes of what a run never changes in the connectors: their particles, kinds, lengths,
+/// stiffnesses and strengths.
+std::uint64_t connectorFingerprint(const ConnectorStore& c) {
+  std::uint64_t h = 1469598103934665603ull;
+  const auto mix = [&](const void* data, std::size_t bytes) {
+    const auto* b = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < bytes; ++i) h = (h ^ b[i]) * 1099511628211ull;
+  };
+  mix(c.a.data(), c.a.size() * sizeof(ParticleId));
+  mix(c.b.data(), c.b.size() * sizeof(ParticleId));
+  mix(c.kind.data(), c.kind.size() * sizeof(ConnectorKind));
+  for (const std::vector<double>* v : {&c.restLength, &c.stiffness, &c.damping, &c.breakLimit, &c.compressionLimit, &c.bondRadius,
+                                       &c.youngsModulus, &c.poissonRatio, &c.tensileStrength, &c.shearStrength})
+    mix(v->data(), v->size() * sizeof(double));
+  return h;
+}
+
 constexpr std::size_t kCounters = 19 + std::tuple_size_v<decltype(StepStats::patchesByCase)>;
 
 }  // namespace
@@ -135,23 +152,12 @@ void World::saveState(StateArchive& a) const {
 
   // connectors
   const ConnectorStore& c = connectors_;
-  a.put("connectors/a", std::span<const std::uint32_t>(rawIds(std::span<const ParticleId>(c.a))));
-  a.put("connectors/b", std::span<const std::uint32_t>(rawIds(std::span<const ParticleId>(c.b))));
-  std::vector<std::uint8_t> kind(c.size());
-  for (std::size_t i = 0; i < c.size(); ++i) kind[i] = static_cast<std::uint8_t>(c.kind[i]);
-  a.put("connectors/kind", std::span<const std::uint8_t>(kind));
-  a.put("connectors/rest_length", std::span<const double>(c.restLength));
-  a.put("connectors/stiffness", std::span<const double>(c.stiffness));
-  a.put("connectors/damping", std::span<const double>(c.damping));
-  a.put("connectors/break_limit", std::span<const double>(c.breakLimit));
-  a.put("connectors/compression_limit", std::span<const double>(c.compressionLimit));
+  // what breaks, and the deformable connectors' directions; the rest is the scene's (a fingerprint of it)
   a.put("connectors/broken", std::span<const std::uint8_t>(c.broken));
-  a.put("connectors/bond_radius", std::span<const double>(c.bondRadius));
-  a.put("connectors/youngs_modulus", std::span<const double>(c.youngsModulus));
-  a.put("connectors/poisson_ratio", std::span<const double>(c.poissonRatio));
-  a.put("connectors/tensile_strength", std::span<const double>(c.tensileStrength));
-  a.put("connectors/shear_strength", std::span<const double>(c.shearStrength));
-  a.putVec3("connectors/direction", connectorDirection_);
+  std::vector<Vec3> direction;
+  for (const ConnectorId id : deformableConnectors_) direction.push_back(connectorDirection_[id.index()]);
+  a.putVec3("connectors/deformable_direction", direction);
+  a.putScalar("connectors/fingerprint", static_cast<std::int64_t>(connectorFingerprint(c)));
 
   // bodies
   const std::size_t nb = bodies_.size();
@@ -292,58 +298,29 @@ Status World::restoreState(const StateArchive& archive) {
   std::vector<std::uint8_t> opened = r.get<std::uint8_t>("particles/opened", 1, np);
   r.checkIndices(particleBody, nb, "particles' bodies");
 
-  // connectors
-  ConnectorStore c;
-  const std::vector<std::uint32_t> ca = r.get<std::uint32_t>("connectors/a", 1, nc), cb = r.get<std::uint32_t>("connectors/b", 1, nc);
-  const std::vector<std::uint8_t> kind = r.get<std::uint8_t>("connectors/kind", 1, nc);
-  c.restLength = r.get<double>("connectors/rest_length", 1, nc);
-  c.stiffness = r.get<double>("connectors/stiffness", 1, nc);
-  c.damping = r.get<double>("connectors/damping", 1, nc);
-  c.breakLimit = r.get<double>("connectors/break_limit", 1, nc);
-  c.compressionLimit = r.get<double>("connectors/compression_limit", 1, nc);
-  c.broken = r.get<std::uint8_t>("connectors/broken", 1, nc);
-  c.bondRadius = r.get<double>("connectors/bond_radius", 1, nc);
-  c.youngsModulus = r.get<double>("connectors/youngs_modulus", 1, nc);
-  c.poissonRatio = r.get<double>("connectors/poisson_ratio", 1, nc);
-  c.tensileStrength = r.get<double>("connectors/tensile_strength", 1, nc);
-  c.shearStrength = r.get<double>("connectors/shear_strength", 1, nc);
-  std::vector<Vec3> direction = r.vec3("connectors/direction", nc);
-  r.checkIndices(ca, np, "connectors' particles");
-  r.checkIndices(cb, np, "connectors' particles");
-  if (!r.ok()) return refuse();
-  c.a.resize(nc);
-  c.b.resize(nc);
-  c.kind.resize(nc);
-  for (std::size_t i = 0; i < nc; ++i) {
-    if (kind[i] > static_cast<std::uint8_t>(ConnectorKind::Bond) || kind[i] != static_cast<std::uint8_t>(connectors_.kind[i]) ||
-        ca[i] != connectors_.a[i].value || cb[i] != connectors_.b[i].value)
-      r.fail("checkpoint connector " + std::to_string(i) + " is not the scene's");
-    c.a[i] = ParticleId(ca[i]);
-    c.b[i] = ParticleId(cb[i]);
-    c.kind[i] = static_cast<ConnectorKind>(kind[i]);
-  }
-  // what a run never changes must be the scene's (a checkpoint of another scene, seed or version is refused);
-  // the state must be finite and within the world's bounds (a step could not survive it)
+  // connectors: which broke (the rest must be the scene's)
+  std::vector<std::uint8_t> broken = r.get<std::uint8_t>("connectors/broken", 1, nc);
+  const std::vector<Vec3> deformableDirection = r.vec3("connectors/deformable_direction", deformableConnectors_.size());
+  const std::int64_t fingerprint = r.i64("connectors/fingerprint");
+  if (r.ok() && fingerprint != static_cast<std::int64_t>(connectorFingerprint(connectors_)))
+    r.fail("the checkpoint's connectors are not the scene's (another scene, seed or version)");
+  // what a run never changes must be the scene's; the state must be finite and within the world's bounds
+  // (a step could not survive it)
   const auto sameBits = [](const std::vector<double>& x, const std::vector<double>& y) {
     return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(double)) == 0);
   };
   if (r.ok() && (!sameBits(p.radius, particles_.radius) || !sameBits(p.mass, particles_.mass) ||
                  !sameBits(p.ownInertia, particles_.ownInertia) || !sameBits(p.invMass, particles_.invMass)))
     r.fail("the checkpoint's particles have other radii or masses than the scene's");
-  if (r.ok() && (!sameBits(c.restLength, connectors_.restLength) || !sameBits(c.stiffness, connectors_.stiffness) ||
-                 !sameBits(c.damping, connectors_.damping) || !sameBits(c.breakLimit, connectors_.breakLimit) ||
-                 !sameBits(c.compressionLimit, connectors_.compressionLimit) || !sameBits(c.bondRadius, connectors_.bondRadius) ||
-                 !sameBits(c.youngsModulus, connectors_.youngsModulus) || !sameBits(c.poissonRatio, connectors_.poissonRatio) ||
-                 !sameBits(c.tensileStrength, connectors_.tensileStrength) || !sameBits(c.shearStrength, connectors_.shearStrength)))
-    r.fail("the checkpoint's connectors are not the scene's (another scene, seed or version)");
   constexpr double kWorldLimit = 1e9;  // [m], as World::addBody
   const auto bounded = [&](const std::vector<Vec3>& xs) {
     return std::all_of(xs.begin(), xs.end(), [&](const Vec3& x) { return x.allFinite() && x.cwiseAbs().maxCoeff() <= kWorldLimit; });
   };
-  if (r.ok() && (!bounded(p.position) || !bounded(p.local) || !bounded(p.velocity) || !bounded(direction)))
+  if (r.ok() && (!bounded(p.position) || !bounded(p.local) || !bounded(p.velocity) || !bounded(deformableDirection)))
     r.fail("the checkpoint has particles at non-finite or too distant positions, or with non-finite velocities");
   for (std::size_t i = 0; r.ok() && i < nc; ++i)
-    if (c.broken[i] > 1) r.fail("checkpoint connector " + std::to_string(i) + " is neither broken nor whole");
+    if (broken[i] > 1) r.fail("checkpoint connector " + std::to_string(i) + " is neither broken nor whole");
+  if (!r.ok()) return refuse();
   p.body.resize(np);
   p.normalIndex.resize(np);
   for (std::size_t i = 0; i < np; ++i) {
@@ -426,7 +403,7 @@ Status World::restoreState(const StateArchive& archive) {
                 factorisedAt[k] <= static_cast<std::int64_t>(removedStart[k + 1] - removedStart[k]);
     for (std::size_t j = 0; fits && j < frameBonds[k].size(); ++j) {
       const std::size_t e = frameBonds[k][j].index();
-      fits = c.kind[e] == ConnectorKind::Bond && p.body[c.a[e].index()].index() == b && p.body[c.b[e].index()].index() == b;
+      fits = connectors_.kind[e] == ConnectorKind::Bond && p.body[connectors_.a[e].index()].index() == b && p.body[connectors_.b[e].index()].index() == b;
     }
     if (!fits) r.fail("checkpoint bond frame " + std::to_string(k) + " does not fit its body");
   }
@@ -444,9 +421,9 @@ Status World::restoreState(const StateArchive& archive) {
 
   // all read: take it over
   particles_ = std::move(p);
-  connectors_ = std::move(c);
+  connectors_.broken = std::move(broken);
   opened_ = std::move(opened);
-  connectorDirection_ = std::move(direction);
+  for (std::size_t k = 0; k < deformableConnectors_.size(); ++k) connectorDirection_[deformableConnectors_[k].index()] = deformableDirection[k];
   normals_ = std::move(normals);
   bodies_.state.resize(nb);
   bodies_.info.resize(nb);

@@ -2,7 +2,8 @@
 """The fenced code blocks of README.md and docs/*.md, run or checked, so that they stay true.
 
   ```python  run as written (with /usr/bin/python3) in a folder holding the trajectories the blocks read
-             (demo.h5 and wall_break.h5, written by volpar from scenes/examples); exit status 0.
+             (demo.h5 and wall_break.h5, written by volpar from scenes/examples, wall_break.h5 with
+             checkpoints); exit status 0.
   ```yaml    a whole scene (it has `bodies:`) is run for a few steps with `volpar run --no-output`; any
              other block is a set of alternative lines for one body key, each run in a one-body scene.
   ```sh      each command checked against what it names: `volpar SUB --opt` (the subcommand exists and
@@ -179,9 +180,9 @@ def main():
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     # the trajectories the Python blocks read
-    for scene, steps in (("demo", "240"), ("wall_break", "480")):
+    for scene, steps, extra in (("demo", "240", []), ("wall_break", "480", ["--checkpoint-every", "240"])):
         r = subprocess.run([volpar, "run", os.path.join(source, "scenes/examples/%s.yaml" % scene), "--steps", steps,
-                            "-o", os.path.join(work, scene + ".h5")], capture_output=True, text=True)
+                            "-o", os.path.join(work, scene + ".h5")] + extra, capture_output=True, text=True)
         if r.returncode != 0:
             print("FAIL the %s run: %s" % (scene, r.stderr))
             return 1

@@ -169,14 +169,14 @@ def set_value(path, index, value):
 
 
 damaged("a particle of no body", set_value("particles/body", 5, 10 ** 6), "refer to index")
-damaged("a connector joining other particles", set_value("connectors/a", 0, 7), "is not the scene's")
+damaged("the connectors of another scene or seed", set_value("connectors/fingerprint", 0, 12345), "are not the scene's")
 damaged("a missing array", lambda g: g.__delitem__("solver/keys"), "has no 'solver/keys'")
 damaged("an array of floats as integers", lambda g: (g.__delitem__("particles/flags"), g.create_dataset("particles/flags", data=np.zeros(5))),
         "holds 64-bit floating point values")
 damaged("a contact naming no particle", set_value("contacts/particles_and_plane", 0, 10 ** 6), "contact 0")
 damaged("a particle at infinity", set_value("particles/position", 3, np.inf), "non-finite")
 damaged("another radius", set_value("particles/radius", 0, 0.5), "other radii or masses")
-damaged("another bond strength", set_value("connectors/rest_length", 2, 0.5), "not the scene's")
+damaged("a connector neither broken nor whole", set_value("connectors/broken", 2, 7), "neither broken nor whole")
 damaged("a compressed array", lambda g: (g.__delitem__("particles/radius"),
                                          g.create_dataset("particles/radius", data=np.zeros(10 ** 6), compression="gzip")),
         "not stored whole")
