@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -56,6 +57,9 @@ int check(const CheckArgs& args);
 int inspect(const std::string& path, bool json);
 int xdmf(const std::string& path);
 
+/// Reads a trajectory (and with `checkpoint` its checkpoint) in a child process under a time limit first: the
+/// HDF5 library can crash or loop on damaged files. An error where the child did not come through.
+std::optional<Error> readsSafely(const std::string& path, bool checkpoint = false);
 /// Prints "volpar: error: ..." to stderr and returns exit status 1.
 int fail(const Error& e);
 /// The most steps a run may have (--steps, or --duration / dt).

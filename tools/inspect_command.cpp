@@ -40,12 +40,10 @@ Result<std::int64_t> stepsFor(std::int64_t scene, double dt, std::int64_t steps,
   return scene;
 }
 
-namespace {
-
 /// HDF5 itself can crash or loop forever on some damaged files (a variable-length string pointing at a heap
 /// object that is not there, a heap object of size zero). So a trajectory is first read in a child process
 /// under a time limit, silenced; the same reading is done here only when the child came through it.
-std::optional<Error> readsSafely(const std::string& path) {
+std::optional<Error> readsSafely(const std::string& path, bool checkpoint) {
   std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);
   const double seconds = 20.0 + (ec ? 0.0 : static_cast<double>(size) / 20e6);
@@ -65,6 +63,7 @@ std::optional<Error> readsSafely(const std::string& path) {
         static_cast<void>((*reader)->positions(0));
         static_cast<void>((*reader)->positions(s->frames - 1));
       }
+      if (checkpoint) static_cast<void>((*reader)->checkpoint());
     }
     _exit(0);
   }
@@ -84,8 +83,6 @@ std::optional<Error> readsSafely(const std::string& path) {
                                  "); the file is damaged"};
   return std::nullopt;
 }
-
-}  // namespace
 
 int inspect(const std::string& path, bool json) {
   if (const auto damaged = readsSafely(path)) return fail(*damaged);
@@ -111,6 +108,7 @@ int inspect(const std::string& path, bool json) {
         .field("time_end", s.time.empty() ? 0.0 : s.time.back())
         .field("energy_start", e0)
         .field("energy_end", e1)
+        .field("checkpoint_step", s.checkpointStep)
         .end();
     std::cout << j.str() << std::endl;
     return 0;
@@ -128,6 +126,8 @@ int inspect(const std::string& path, bool json) {
   std::printf("particles    %zu\nbodies       %zu\n", s.particles, s.bodies);
   if (!s.total.empty())
     std::printf("energy       %.9g J -> %.9g J (kinetic %.6g -> %.6g J)\n", e0, e1, s.kinetic.front(), s.kinetic.back());
+  if (s.checkpointStep >= 0)
+    std::printf("checkpoint   step %lld (volpar run --resume %s goes on from it)\n", static_cast<long long>(s.checkpointStep), path.c_str());
   return 0;
 }
 

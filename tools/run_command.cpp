@@ -75,6 +75,7 @@ int run(const RunArgs& args) {
   // a resumed run: the scene as it was run, from the trajectory, and the state of its checkpoint
   std::optional<Checkpoint> checkpoint;
   if (!args.resume.empty()) {
+    if (const auto damaged = readsSafely(args.resume, true)) return fail(*damaged);
     auto reader = H5mdReader::open(args.resume);
     if (!reader) return fail(reader.error());
     auto cp = reader.value()->checkpoint();

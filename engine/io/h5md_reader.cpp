@@ -267,6 +267,7 @@ Result<TrajectorySummary> H5mdReader::summary() const {
     s.kinetic = readAll<double>(f, "observables/kinetic_energy/value", H5T_NATIVE_DOUBLE, perFrame, limit);
     s.potential = readAll<double>(f, "observables/potential_energy/value", H5T_NATIVE_DOUBLE, perFrame, limit);
     s.total = readAll<double>(f, "observables/total_energy/value", H5T_NATIVE_DOUBLE, perFrame, limit);
+    s.checkpointStep = readCountAttr(f, "checkpoint", "step").value_or(-1);
     if (H5Lexists(f, "patches", H5P_DEFAULT) > 0) {
       const Expect rows{H5T_INTEGER, 1, {}, "one row number per frame, [T]"};
       s.patchOffset = readAll<std::int64_t>(f, "patches/offset", H5T_NATIVE_INT64, rows, limit);

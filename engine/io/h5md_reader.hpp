@@ -30,6 +30,7 @@ struct TrajectorySummary {
   /// Per frame: its first row and number of rows in /patches, [T] each (empty when the file has no /patches).
   std::vector<std::int64_t> patchOffset;
   std::vector<std::int64_t> patchCount;
+  std::int64_t checkpointStep = -1;  ///< the step of the file's checkpoint (-1: none)
 };
 
 /// A trajectory's checkpoint (H5mdWriter::writeCheckpoint) and what it takes to build its world again.
