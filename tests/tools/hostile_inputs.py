@@ -214,7 +214,7 @@ def option_cases():
 
     add("no command", [], "A subcommand is required")
     add("unknown command", ["fly"], "unknown command 'fly'")
-    add("run without a scene", ["run"], "scene is required")
+    add("run without a scene", ["run"], "expected a scene file, or --resume FILE")
     add("scene missing", ["run", "{dir}/none.yaml"], "none.yaml")
     add("scene a folder", ["run", "{dir}"], "{dir}")
     add("scene /dev/zero", ["run", "/dev/zero", "--no-output"], "not a regular file")
