@@ -39,7 +39,9 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
     return out;
   };
   if (!options.output.empty()) {
-    auto created = H5mdWriter::create(partial, world, meta);
+    TrajectoryMeta withCheckpoints = meta;
+    withCheckpoints.checkpoints = withCheckpoints.checkpoints || options.checkpointEvery > 0;
+    auto created = H5mdWriter::create(partial, world, withCheckpoints);
     const auto removePartial = [&] {
       writer.reset();
       std::error_code ignored;

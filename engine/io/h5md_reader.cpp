@@ -2,6 +2,7 @@
 
 #include <hdf5.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -267,7 +268,7 @@ Result<TrajectorySummary> H5mdReader::summary() const {
     s.kinetic = readAll<double>(f, "observables/kinetic_energy/value", H5T_NATIVE_DOUBLE, perFrame, limit);
     s.potential = readAll<double>(f, "observables/potential_energy/value", H5T_NATIVE_DOUBLE, perFrame, limit);
     s.total = readAll<double>(f, "observables/total_energy/value", H5T_NATIVE_DOUBLE, perFrame, limit);
-    s.checkpointStep = readCountAttr(f, "checkpoint", "step").value_or(-1);
+    s.checkpointStep = std::max<std::int64_t>(readCountAttr(f, "checkpoint", "step").value_or(-1), -1);
     if (H5Lexists(f, "patches", H5P_DEFAULT) > 0) {
       const Expect rows{H5T_INTEGER, 1, {}, "one row number per frame, [T]"};
       s.patchOffset = readAll<std::int64_t>(f, "patches/offset", H5T_NATIVE_INT64, rows, limit);
@@ -409,12 +410,17 @@ Result<Checkpoint> H5mdReader::checkpoint() const {
   Checkpoint cp;
   try {
     const std::optional<std::int64_t> step = readCountAttr(f, "checkpoint", "step");
-    if (!step)
+    if (!step || *step < 0)
       return Error{impl_->path, 0, 0, "the trajectory has no checkpoint (write one with volpar run --checkpoint-every STEPS)"};
     cp.step = *step;
-    const std::string name = "checkpoint/step_" + std::to_string(cp.step);
+    const std::optional<std::int64_t> slot = readCountAttr(f, "checkpoint", "slot");
+    if (!slot || (*slot != 0 && *slot != 1)) throw ReadFailure{"/checkpoint@slot is missing or neither 0 nor 1"};
+    const std::string name = "checkpoint/slot_" + std::to_string(*slot);
     if (H5Lexists(f, name.c_str(), H5P_DEFAULT) <= 0)
-      throw ReadFailure{"/checkpoint@step is " + std::to_string(cp.step) + " but there is no /" + name};
+      throw ReadFailure{"/checkpoint@slot is " + std::to_string(*slot) + " but there is no /" + name};
+    const std::optional<std::int64_t> slotStep = readCountAttr(f, name, "step");
+    if (!slotStep || *slotStep != cp.step)
+      throw ReadFailure{"/" + name + "@step is not /checkpoint@step (" + std::to_string(cp.step) + ")"};
     cp.sceneName = readStringAttr(f, "parameters", "scene_name", limit);
     cp.sceneFile = readStringAttr(f, "parameters", "scene_file", limit);
     cp.sceneText = readStrings(f, "parameters/scene", true, limit).at(0);

@@ -572,6 +572,10 @@ H5mdWriter::H5mdWriter(std::unique_ptr<Impl> impl, std::string path, std::size_t
 
 H5mdWriter::~H5mdWriter() { static_cast<void>(close()); }
 
+namespace {
+void makeCheckpointGroup(hid_t file);
+}  // namespace
+
 Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, const World& world,
                                                        const TrajectoryMeta& meta) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are reported through Result, not printed by HDF5
@@ -594,6 +598,12 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     mdc.flash_incr_mode = H5C_flash_incr__off;
     mdc.decr_mode = H5C_decr__off;
     check(H5Pset_mdc_config(fapl.get(), &mdc), "metadata cache settings");
+    // No aggregators: HDF5 takes space for metadata and small raw data in blocks at the file's end, and gives
+    // back what it did not use at each flush, moving the file's end down; it cuts the file shorter before it
+    // rewrites the superblock that records the end, and a run killed in between left a file shorter than its
+    // superblock says, which no longer opens. Without them the end only moves up while a run writes.
+    check(H5Pset_meta_block_size(fapl.get(), 0), "metadata block size");
+    check(H5Pset_small_data_block_size(fapl.get(), 0), "small data block size");
     // The 1.10 file format: a dataset whose frames are its only unlimited dimension has its chunks indexed in
     // an extensible array, and appending a frame writes new entries without moving the old ones. The original
     // format's B-tree index splits its nodes as it grows, rewriting the nodes that point at frames already
@@ -702,6 +712,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
           "link time");
     // /parameters
     {
+      if (meta.checkpoints) makeCheckpointGroup(f);
       Hid par = group(f, "parameters");
       scalarString(par.get(), "scene", meta.sceneText);
       attrString(par.get(), "scene_name", meta.sceneName);
@@ -968,6 +979,31 @@ Status H5mdWriter::writeBreakEvents(const World& world) {
   return okStatus();
 }
 
+namespace {
+
+/// /checkpoint: two slot groups and the attributes that say which holds the checkpoint (step -1: none yet).
+void makeCheckpointGroup(hid_t file) {
+  Hid top = group(file, "checkpoint");
+  attrScalar<std::int64_t>(top.get(), "step", -1);
+  attrScalar<std::int64_t>(top.get(), "slot", -1);
+  group(top.get(), "slot_0");
+  group(top.get(), "slot_1");
+}
+
+/// Writes a scalar int64 attribute that exists already, in place (its header message keeps its size and place).
+void rewriteAttr(hid_t obj, const char* name, std::int64_t value) {
+  Hid attr = checked(H5Aopen(obj, name, H5P_DEFAULT), H5Aclose, std::string("attribute ") + name);
+  check(H5Awrite(attr.get(), H5T_NATIVE_INT64, &value), std::string("write attribute ") + name);
+}
+
+/// The names of the links in a group.
+herr_t collectLink(hid_t, const char* name, const H5L_info_t*, void* out) {
+  static_cast<std::vector<std::string>*>(out)->emplace_back(name);
+  return 0;
+}
+
+}  // namespace
+
 Status H5mdWriter::writeCheckpoint(const World& world, std::int64_t endStep) {
   if (!impl_ || !impl_->file.valid()) return Error{path_, 0, 0, "trajectory is closed"};
   const std::int64_t step = world.stepIndex();
@@ -978,56 +1014,55 @@ Status H5mdWriter::writeCheckpoint(const World& world, std::int64_t endStep) {
   // as for frames: begun only with room for it twice over and for closing the file
   hsize_t sizeBefore = 0;
   if (H5Fget_filesize(f, &sizeBefore) < 0) return Error{path_, 0, 0, "cannot read the trajectory's size"};
-  const std::uint64_t needed = 2 * archive.bytes() + (std::uint64_t{1} << 20);
+  const std::uint64_t needed = 2 * archive.bytes() + (std::uint64_t{2} << 20);
   if (const std::uint64_t room = roomToGrow(path_, sizeBefore); room < needed)
     return Error{path_, 0, 0, "not enough room for the checkpoint of step " + std::to_string(step) + ": the disk or the file-size limit leaves " +
                                   std::to_string(room) + " more bytes and it may need " + std::to_string(needed)};
   try {
-    Hid top = H5Lexists(f, "checkpoint", H5P_DEFAULT) > 0 ? checked(H5Gopen2(f, "checkpoint", H5P_DEFAULT), H5Gclose, "group checkpoint")
-                                                           : group(f, "checkpoint");
-    const std::string name = "step_" + std::to_string(step);
-    if (H5Lexists(top.get(), name.c_str(), H5P_DEFAULT) > 0) check(H5Ldelete(top.get(), name.c_str(), H5P_DEFAULT), "drop " + name);
-    {
-      Hid g = group(top.get(), name);
-      // contiguous, uncompressed, written once: a reader can tell its size from its shape
-      for (const StateArchive::Array& a : archive.arrays()) {
-        if (const std::size_t slash = a.name.rfind('/'); slash != std::string::npos) {
-          const std::string folder = a.name.substr(0, slash);
-          if (H5Lexists(g.get(), folder.c_str(), H5P_DEFAULT) <= 0) group(g.get(), folder);
-        }
-        const hid_t where = g.get();
-        const std::string& leaf = a.name;
-        std::vector<hsize_t> dims{a.rows()};
-        if (a.width > 1) dims.push_back(a.width);
-        hid_t fileType = H5T_IEEE_F64LE, memType = H5T_NATIVE_DOUBLE;
-        switch (a.type) {
-          case StateArchive::Type::F64: break;
-          case StateArchive::Type::F32: fileType = H5T_IEEE_F32LE; memType = H5T_NATIVE_FLOAT; break;
-          case StateArchive::Type::I64: fileType = H5T_STD_I64LE; memType = H5T_NATIVE_INT64; break;
-          case StateArchive::Type::U32: fileType = H5T_STD_U32LE; memType = H5T_NATIVE_UINT32; break;
-          case StateArchive::Type::U8: fileType = H5T_STD_U8LE; memType = H5T_NATIVE_UINT8; break;
-        }
-        Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose, "space");
-        Hid dcpl = datasetPlist();
-        Hid ds = checked(H5Dcreate2(where, leaf.c_str(), fileType, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
-                         "dataset " + a.name);
-        if (!a.bytes.empty()) check(H5Dwrite(ds.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.bytes.data()), "write " + a.name);
+    // the checkpoint goes into the slot that does not hold the current one; only that slot changes until it
+    // is complete on disk, and then two attributes of /checkpoint, in place
+    if (H5Lexists(f, "checkpoint", H5P_DEFAULT) <= 0) makeCheckpointGroup(f);
+    Hid top = checked(H5Gopen2(f, "checkpoint", H5P_DEFAULT), H5Gclose, "group checkpoint");
+    const int slot = checkpointSlot_ == 0 ? 1 : 0;
+    const std::string slotName = "slot_" + std::to_string(slot);
+    Hid g = checked(H5Gopen2(top.get(), slotName.c_str(), H5P_DEFAULT), H5Gclose, "group " + slotName);
+    std::vector<std::string> old;
+    check(H5Literate(g.get(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collectLink, &old), "list " + slotName);
+    for (const std::string& name : old) check(H5Ldelete(g.get(), name.c_str(), H5P_DEFAULT), "drop " + name);
+    for (const char* name : {"step", "time", "frames", "end_step"})
+      if (H5Aexists(g.get(), name) > 0) check(H5Adelete(g.get(), name), std::string("drop attribute ") + name);
+    // contiguous, uncompressed, written once: a reader can tell its size from its shape
+    for (const StateArchive::Array& a : archive.arrays()) {
+      if (const std::size_t slash = a.name.rfind('/'); slash != std::string::npos) {
+        const std::string folder = a.name.substr(0, slash);
+        if (H5Lexists(g.get(), folder.c_str(), H5P_DEFAULT) <= 0) group(g.get(), folder);
       }
-      attrScalar<std::int64_t>(g.get(), "step", step);
-      attrScalar<double>(g.get(), "time", world.time());
-      attrScalar<std::int64_t>(g.get(), "frames", static_cast<std::int64_t>(frames()));
-      attrScalar<std::int64_t>(g.get(), "end_step", endStep);
+      std::vector<hsize_t> dims{a.rows()};
+      if (a.width > 1) dims.push_back(a.width);
+      hid_t fileType = H5T_IEEE_F64LE, memType = H5T_NATIVE_DOUBLE;
+      switch (a.type) {
+        case StateArchive::Type::F64: break;
+        case StateArchive::Type::F32: fileType = H5T_IEEE_F32LE; memType = H5T_NATIVE_FLOAT; break;
+        case StateArchive::Type::I64: fileType = H5T_STD_I64LE; memType = H5T_NATIVE_INT64; break;
+        case StateArchive::Type::U32: fileType = H5T_STD_U32LE; memType = H5T_NATIVE_UINT32; break;
+        case StateArchive::Type::U8: fileType = H5T_STD_U8LE; memType = H5T_NATIVE_UINT8; break;
+      }
+      Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose, "space");
+      Hid dcpl = datasetPlist();
+      Hid ds = checked(H5Dcreate2(g.get(), a.name.c_str(), fileType, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
+                       "dataset " + a.name);
+      if (!a.bytes.empty()) check(H5Dwrite(ds.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.bytes.data()), "write " + a.name);
     }
+    attrScalar<std::int64_t>(g.get(), "step", step);
+    attrScalar<double>(g.get(), "time", world.time());
+    attrScalar<std::int64_t>(g.get(), "frames", static_cast<std::int64_t>(frames()));
+    attrScalar<std::int64_t>(g.get(), "end_step", endStep);
     check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
-    // the new checkpoint is on disk: make it the file's, then let the old one go
-    if (H5Aexists(top.get(), "step") > 0) check(H5Adelete(top.get(), "step"), "drop /checkpoint@step");
-    attrScalar<std::int64_t>(top.get(), "step", step);
+    // the new checkpoint is on disk: make it the file's
+    rewriteAttr(top.get(), "step", step);
+    rewriteAttr(top.get(), "slot", slot);
     check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
-    if (checkpointStep_ >= 0) {
-      const std::string old = "step_" + std::to_string(checkpointStep_);
-      if (H5Lexists(top.get(), old.c_str(), H5P_DEFAULT) > 0) check(H5Ldelete(top.get(), old.c_str(), H5P_DEFAULT), "drop " + old);
-      check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
-    }
+    checkpointSlot_ = slot;
   } catch (const H5Failure& e) {
     return Error{path_, 0, 0, "cannot write the checkpoint of step " + std::to_string(step) + " (" + e.what + ")"};
   }

@@ -20,6 +20,9 @@ struct TrajectoryMeta {
   std::vector<std::string> extraFiles;  ///< files the scene uses (meshes), stored under /parameters/files
   int outputEvery = 1;
   std::int64_t stepsRequested = 0;
+  /// The run writes checkpoints: /checkpoint is made with the file, so that writing one later changes
+  /// nothing outside it (a run killed while it writes a checkpoint keeps every frame before).
+  bool checkpoints = false;
 };
 
 class H5mdWriter {
@@ -33,9 +36,10 @@ class H5mdWriter {
 
   /// Appends the world's current state as one frame and flushes the file.
   [[nodiscard]] Status writeFrame(const World& world);
-  /// Writes the world's whole state (World::saveState) as the checkpoint of its step, under
-  /// /checkpoint/step_<N>, then makes it the file's checkpoint (/checkpoint@step) and drops the one before:
-  /// a run killed while it writes keeps the earlier checkpoint. Call it after writeFrame, so that the frames
+  /// Writes the world's whole state (World::saveState) as the checkpoint of its step into the slot of
+  /// /checkpoint (slot_0, slot_1) that does not hold the current one, flushes it, then makes it the file's
+  /// (/checkpoint@step and @slot, rewritten in place): a run killed while it writes keeps every frame and
+  /// the checkpoint before. Call it after writeFrame, so that the frames
   /// and breakage records up to the checkpoint are complete in the file. `endStep`: the step the run is to
   /// end at (a resumed run goes on to it).
   [[nodiscard]] Status writeCheckpoint(const World& world, std::int64_t endStep);
@@ -67,6 +71,7 @@ class H5mdWriter {
   std::vector<std::int64_t> patchOffsets_;  // per frame: its first row in /patches
   std::vector<std::int64_t> patchCounts_;   // per frame: its patches
   std::int64_t checkpointStep_ = -1;
+  int checkpointSlot_ = -1;  ///< the slot of /checkpoint that holds the checkpoint (-1: none)
 };
 
 }  // namespace volpar

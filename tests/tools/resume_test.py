@@ -152,8 +152,7 @@ def damaged(label, edit, message):
     path = os.path.join(work, f"damaged-{label}.h5")
     shutil.copy(os.path.join(work, pile), path)
     with h5py.File(path, "r+") as f:
-        step = f["checkpoint"].attrs["step"]
-        edit(f[f"checkpoint/step_{step}"])
+        edit(f["checkpoint/slot_%d" % f["checkpoint"].attrs["slot"]])
     p = run("--resume", path, "-o", f"out-{label}.h5", expect=1)
     check(p.returncode == 1 and message in p.stderr and "Traceback" not in p.stderr and not os.path.exists(os.path.join(work, f"out-{label}.h5")),
           f"a checkpoint with {label} is refused: {p.stderr.strip()[:160]}")
