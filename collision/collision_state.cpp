@@ -107,7 +107,6 @@ bool restoreContacts(StateReader& r, ContactSet& out, std::size_t particles, std
 }
 
 void savePatches(StateArchive& archive, const PatchSet& set) {
-  const std::size_t n = set.patches.size();
   std::vector<std::uint32_t> ids;
   std::vector<double> vectors, scalars;
   std::vector<std::uint8_t> flags;
@@ -132,7 +131,6 @@ void savePatches(StateArchive& archive, const PatchSet& set) {
                                   static_cast<std::int64_t>(s.splits), static_cast<std::int64_t>(s.reused)};
   for (const std::size_t c : s.byCase) stats.push_back(static_cast<std::int64_t>(c));
   archive.put("patches/statistics", std::span<const std::int64_t>(stats));
-  static_cast<void>(n);
 }
 
 bool restorePatches(StateReader& r, PatchSet& out, const ContactSet& contacts, std::size_t bodies, std::size_t planes) {

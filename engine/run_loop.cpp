@@ -1,6 +1,9 @@
 #include "volpar/engine/run_loop.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <csignal>
 #include <filesystem>
 
@@ -10,6 +13,38 @@ namespace volpar {
 
 namespace {
 using Clock = std::chrono::steady_clock;
+}
+
+Result<std::int64_t> stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration) {
+  if (steps > 0) return steps;
+  if (duration > 0.0) {
+    const double n = std::round(duration / dt);
+    if (!(n <= static_cast<double>(kMaxSteps))) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "--duration %g s is %.3g steps of dt = %g s; expected at most %lld steps", duration,
+                    n, dt, kMaxSteps);
+      return Error{"", 0, 0, buf};
+    }
+    return std::max<std::int64_t>(1, static_cast<std::int64_t>(n));
+  }
+  return scene;
+}
+
+std::optional<Error> refuseOverwrite(const std::string& output, const std::string& input,
+                                     const std::vector<std::string>& inputs, const std::string& inputName) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path out(output);
+  if (!fs::exists(out, ec)) return std::nullopt;
+  if (fs::is_directory(out, ec)) return Error{output, 0, 0, "the output is a folder; expected a file name for the trajectory"};
+  const auto same = [&](const std::string& in) {
+    std::error_code e;
+    return fs::equivalent(out, fs::path(in), e) && !e;
+  };
+  if (!input.empty() && same(input)) return Error{output, 0, 0, "the output is " + inputName + " itself; refusing to write over an input"};
+  for (const std::string& in : inputs)
+    if (same(in)) return Error{output, 0, 0, "the output is " + in + ", which the scene reads; refusing to write over an input"};
+  return std::nullopt;
 }
 
 std::string partialPath(const std::string& output) {

@@ -5,13 +5,30 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "volpar/engine/core/status.hpp"
 #include "volpar/engine/io/h5md_writer.hpp"
 #include "volpar/engine/world.hpp"
 
 namespace volpar {
+
+/// The most steps a run may have.
+inline constexpr long long kMaxSteps = 1'000'000'000'000LL;
+
+/// Steps to run: `steps` where it is set (> 0), else `duration` / dt where that is (> 0), else the scene's; an
+/// error when `duration` needs more than kMaxSteps steps of `dt` (the message names --duration, as the
+/// command line's option).
+[[nodiscard]] Result<std::int64_t> stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration);
+
+/// An error when the trajectory `output` would be written over one of a run's inputs (`input`, unless empty:
+/// the scene file or the trajectory resumed, which `inputName` names in the message; a mesh file the scene
+/// reads, of `inputs`; through any link) or over a folder.
+[[nodiscard]] std::optional<Error> refuseOverwrite(const std::string& output, const std::string& input,
+                                                   const std::vector<std::string>& inputs,
+                                                   const std::string& inputName = "the scene file");
 
 /// Where a run writes its trajectory until it ends well (`out.partial.h5` for `out.h5`); an interrupted or
 /// failed run leaves its complete frames there.

@@ -6,7 +6,6 @@
 #include <string>
 
 #include "volpar/collision/collision_state.hpp"
-#include "volpar/dynamics/rigid_integrator.hpp"
 #include "volpar/engine/world.hpp"
 
 namespace volpar {
@@ -494,12 +493,14 @@ Status World::restoreState(const StateArchive& archive) {
   // the same breakable flags as saved (buildLattice sets them where a lattice is made)
   for (std::size_t i = 0; i < nb; ++i) bodies_.info[i].breakable = breakableFlag[i] != 0;
 
+  const double broadphaseMargin = broadphase_.margin();
   broadphase_ = Broadphase();
-  broadphase_.setMargin(settings_.broadphaseMargin > 0.0 ? settings_.broadphaseMargin : maxRadius_);
+  broadphase_.setMargin(broadphaseMargin);
   for (std::size_t k = 0; k < proxied.size(); ++k)
     broadphase_.restoreBody(BodyId(proxied[k]), Aabb{fatLo[k], fatHi[k]}, bodies_.info[proxied[k]].kind == BodyKind::Static);
+  const double contactMargin = contactFinder_.margin();
   contactFinder_ = ContactFinder();
-  contactFinder_.setMargin(settings_.contactMargin);
+  contactFinder_.setMargin(contactMargin);
   contactFinder_.setSweepTime(settings_.dt);
   for (std::size_t i = 0; i < nb; ++i)
     if (!bodies_.info[i].particles.empty()) contactFinder_.addBody(BodyId(i), particles_, bodies_);  // (retired: none)

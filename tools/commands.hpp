@@ -9,6 +9,7 @@
 
 #include "volpar/engine/core/status.hpp"
 #include "volpar/engine/scene/scene_build.hpp"
+#include "volpar/engine/run_loop.hpp"
 #include "volpar/engine/scene/scene_loader.hpp"
 
 namespace volpar::cli {
@@ -62,11 +63,8 @@ int xdmf(const std::string& path);
 std::optional<Error> readsSafely(const std::string& path, bool checkpoint = false);
 /// Prints "volpar: error: ..." to stderr and returns exit status 1.
 int fail(const Error& e);
-/// The most steps a run may have (--steps, or --duration / dt).
-inline constexpr long long kMaxSteps = 1'000'000'000'000LL;
-
-/// Steps to run: the command line's --steps or --duration, else the scene's; an error when --duration
-/// needs more than kMaxSteps steps of `dt`.
-Result<std::int64_t> stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration);
+/// The most steps a run may have (--steps, or --duration / dt), and the steps of a run (engine/run_loop.hpp).
+using ::volpar::kMaxSteps;
+using ::volpar::stepsFor;
 
 }  // namespace volpar::cli

@@ -25,20 +25,6 @@ int fail(const Error& e) {
   return 1;
 }
 
-Result<std::int64_t> stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration) {
-  if (steps > 0) return steps;
-  if (duration > 0.0) {
-    const double n = std::round(duration / dt);
-    if (!(n <= static_cast<double>(kMaxSteps))) {
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "--duration %g s is %.3g steps of dt = %g s; expected at most %lld steps", duration,
-                    n, dt, kMaxSteps);
-      return Error{"", 0, 0, buf};
-    }
-    return std::max<std::int64_t>(1, static_cast<std::int64_t>(n));
-  }
-  return scene;
-}
 
 /// HDF5 itself can crash or loop forever on some damaged files (a variable-length string pointing at a heap
 /// object that is not there, a heap object of size zero). So a trajectory is first read in a child process

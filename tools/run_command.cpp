@@ -36,27 +36,6 @@ void progressBar(std::int64_t done, std::int64_t total) {
   std::fflush(stderr);
 }
 
-/// An error when the trajectory would be written over one of the run's inputs (the scene, a mesh it reads,
-/// through any link) or over a folder.
-std::optional<Error> refuseOverwrite(const std::string& output, const std::string& scene,
-                                     const std::vector<std::string>& inputs) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const fs::path out(output);
-  if (!fs::exists(out, ec)) return std::nullopt;
-  if (fs::is_directory(out, ec)) return Error{output, 0, 0, "the output is a folder; expected a file name for the trajectory"};
-  const auto same = [&](const std::string& input) {
-    std::error_code e;
-    return fs::equivalent(out, fs::path(input), e) && !e;
-  };
-  if (same(scene)) return Error{output, 0, 0, "the output is the scene file itself; refusing to write over an input"};
-  for (const std::string& in : inputs)
-    if (same(in)) return Error{output, 0, 0, "the output is " + in + ", which the scene reads; refusing to write over an input"};
-  return std::nullopt;
-}
-
-}  // namespace
-
 /// The default name of a resumed run's trajectory: `pile.partial.h5` at step 1200 -> `pile-from-1200.h5`
 /// (and a resumed run's own `pile-from-1200.h5` at step 1800 -> `pile-from-1800.h5`).
 std::string resumedName(const std::string& resumed, std::int64_t step) {
@@ -69,6 +48,8 @@ std::string resumedName(const std::string& resumed, std::int64_t step) {
     stem.resize(from);
   return stem + "-from-" + std::to_string(step) + ".h5";
 }
+
+}  // namespace
 
 int run(const RunArgs& args) {
   if (args.scene.empty() && args.resume.empty()) return fail(Error{"", 0, 0, "expected a scene file, or --resume FILE"});
@@ -119,7 +100,8 @@ int run(const RunArgs& args) {
                      : checkpoint         ? resumedName(args.resume, checkpoint->step)
                                           : std::filesystem::path(args.scene).stem().string() + ".h5";
     for (const std::string& out : {options.output, partialPath(options.output)})
-      if (const auto refused = refuseOverwrite(out, input, built->meshFiles)) return fail(*refused);
+      if (const auto refused = refuseOverwrite(out, input, built->meshFiles, checkpoint ? "the trajectory resumed" : "the scene file"))
+        return fail(*refused);
   }
   if (isatty(STDERR_FILENO)) options.progress = progressBar;
   options.stop = &gStop;

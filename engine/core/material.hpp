@@ -1,7 +1,10 @@
 #pragma once
 
+#include <cmath>
 #include <limits>
 #include <string>
+
+#include "volpar/engine/core/connector_store.hpp"
 
 namespace volpar {
 
@@ -28,5 +31,17 @@ struct Material {
   double shearStrength = std::numeric_limits<double>::infinity();    ///< of a bond [Pa]
   double weibullModulus = 0.0;  ///< [-]; 0 = every bond as strong as given
 };
+
+/// Bonds (of a body or a glue) made of `m`: they never break as rods do, take its modulus and Poisson's
+/// ratio, and its strengths and Weibull modulus where they set none. They need its Young's modulus (> 0),
+/// which the caller checks.
+inline void takeBondDefaults(const Material& m, ConnectorParams& c) {
+  c.breakLimit = c.compressionLimit = std::numeric_limits<double>::infinity();
+  c.bond.youngsModulus = m.youngsModulus;
+  c.bond.poissonRatio = m.poissonRatio;
+  if (!std::isfinite(c.bond.tensileStrength)) c.bond.tensileStrength = m.tensileStrength;
+  if (!std::isfinite(c.bond.shearStrength)) c.bond.shearStrength = m.shearStrength;
+  if (!(c.bond.weibullModulus > 0.0)) c.bond.weibullModulus = m.weibullModulus;
+}
 
 }  // namespace volpar

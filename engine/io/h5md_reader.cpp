@@ -421,7 +421,6 @@ Result<Checkpoint> H5mdReader::checkpoint() const {
     const std::optional<std::int64_t> slotStep = readCountAttr(f, name, "step");
     if (!slotStep || *slotStep != cp.step)
       throw ReadFailure{"/" + name + "@step is not /checkpoint@step (" + std::to_string(cp.step) + ")"};
-    cp.sceneName = readStringAttr(f, "parameters", "scene_name", limit);
     cp.sceneFile = readStringAttr(f, "parameters", "scene_file", limit);
     cp.sceneText = readStrings(f, "parameters/scene", true, limit).at(0);
     const std::optional<std::int64_t> seed = readCountAttr(f, "parameters", "seed");

@@ -37,7 +37,6 @@ struct TrajectorySummary {
 struct Checkpoint {
   std::int64_t step = 0;           ///< the step the state is of
   std::int64_t endStep = 0;        ///< the step the run that wrote it was to end at
-  std::string sceneName;
   std::string sceneFile;           ///< the scene file's path as the run was given it
   std::string sceneText;           ///< the scene as it was run
   std::int64_t seed = 0;           ///< the seed the run used

@@ -215,12 +215,7 @@ std::optional<std::string> latticeFitNote(const std::string& body, const Particl
 std::optional<Error> bondsFromMaterial(const SceneDesc& desc, const std::string& material, const SourceMark& mark,
                                        const std::string& who, ConnectorParams& c) {
   const Material& mat = desc.materials.at(material);
-  c.breakLimit = c.compressionLimit = std::numeric_limits<double>::infinity();
-  c.bond.youngsModulus = mat.youngsModulus;
-  c.bond.poissonRatio = mat.poissonRatio;
-  if (!std::isfinite(c.bond.tensileStrength)) c.bond.tensileStrength = mat.tensileStrength;
-  if (!std::isfinite(c.bond.shearStrength)) c.bond.shearStrength = mat.shearStrength;
-  if (!(c.bond.weibullModulus > 0.0)) c.bond.weibullModulus = mat.weibullModulus;
+  takeBondDefaults(mat, c);
   if (!(mat.youngsModulus > 0.0))
     return at(desc, mark,
               who + ": bonds need their material's Young's modulus; expected 'youngs_modulus' [Pa] in material '" + material + "'");

@@ -13,44 +13,6 @@ namespace volpar::python {
 
 namespace {
 
-constexpr long long kMaxSteps = 1'000'000'000'000LL;  // (volpar run's limit on --steps, tools/commands.hpp)
-
-// The next two mirror what tools/ does for `volpar run`, which the engine library does not offer: the steps of a
-// run (tools/inspect_command.cpp: stepsFor) and the refusal to write over an input (tools/run_command.cpp:
-// refuseOverwrite), with the same messages.
-
-Result<std::int64_t> stepsFor(std::int64_t scene, double dt, std::int64_t steps, double duration) {
-  if (steps > 0) return steps;
-  if (duration > 0.0) {
-    const double n = std::round(duration / dt);
-    if (!(n <= static_cast<double>(kMaxSteps))) {
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "--duration %g s is %.3g steps of dt = %g s; expected at most %lld steps", duration,
-                    n, dt, kMaxSteps);
-      return Error{"", 0, 0, buf};
-    }
-    return std::max<std::int64_t>(1, static_cast<std::int64_t>(n));
-  }
-  return scene;
-}
-
-std::optional<Error> refuseOverwrite(const std::string& output, const std::string& scene,
-                                     const std::vector<std::string>& inputs) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const fs::path out(output);
-  if (!fs::exists(out, ec)) return std::nullopt;
-  if (fs::is_directory(out, ec)) return Error{output, 0, 0, "the output is a folder; expected a file name for the trajectory"};
-  const auto same = [&](const std::string& input) {
-    std::error_code e;
-    return fs::equivalent(out, fs::path(input), e) && !e;
-  };
-  if (!scene.empty() && same(scene)) return Error{output, 0, 0, "the output is the scene file itself; refusing to write over an input"};
-  for (const std::string& in : inputs)
-    if (same(in)) return Error{output, 0, 0, "the output is " + in + ", which the scene reads; refusing to write over an input"};
-  return std::nullopt;
-}
-
 /// The summary, with the keys and in the order of `volpar run --json` (tools/run_command.cpp).
 py::dict summaryDict(const World& world, const std::string& sceneName, const RunSummary& s) {
   const StageTimes& t = s.stageTimes;

@@ -9,6 +9,7 @@
 #include "python/src/common.hpp"
 #include "volpar/engine/builders/elastic_calibration.hpp"
 #include "volpar/engine/core/material.hpp"
+#include "volpar/engine/run_loop.hpp"
 
 namespace volpar::python {
 
@@ -23,8 +24,6 @@ static_assert(std::is_standard_layout_v<BodyId> && sizeof(BodyId) == sizeof(std:
 namespace {
 
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
-constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr long long kMaxSteps = 1'000'000'000'000LL;  // (volpar run's limit on --steps)
 
 /// While alive, a zero-copy view of a world's particle store exists: it keeps the world alive (its base is
 /// this guard, which holds the world) and stops bodies being added (which would move the memory).
@@ -108,15 +107,10 @@ MaterialId materialId(const World& world, const py::object& material) {
   return MaterialId(static_cast<std::size_t>(i));
 }
 
-/// A body's or a glue's bonds take their modulus, and the strengths they leave unset, from the material (as
-/// the scene builder's bondsFromMaterial).
+/// A body's or a glue's bonds take their modulus, and the strengths they leave unset, from the material
+/// (takeBondDefaults, as the scene builder does).
 void bondsFromMaterial(const Material& mat, const std::string& who, ConnectorParams& c) {
-  c.breakLimit = c.compressionLimit = kInf;
-  c.bond.youngsModulus = mat.youngsModulus;
-  c.bond.poissonRatio = mat.poissonRatio;
-  if (!std::isfinite(c.bond.tensileStrength)) c.bond.tensileStrength = mat.tensileStrength;
-  if (!std::isfinite(c.bond.shearStrength)) c.bond.shearStrength = mat.shearStrength;
-  if (!(c.bond.weibullModulus > 0.0)) c.bond.weibullModulus = mat.weibullModulus;
+  takeBondDefaults(mat, c);
   if (!(mat.youngsModulus > 0.0))
     raise(who + ": bonds need their material's Young's modulus; expected youngs_modulus [Pa] in material '" + mat.name + "'");
 }
