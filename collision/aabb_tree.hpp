@@ -1,5 +1,5 @@
 #pragma once
-// Dynamic AABB tree (DESIGN section 3), after Box2D's b2DynamicTree (Erin Catto) with Bullet's btDbvt
+// Dynamic AABB tree (docs/architecture.md), after Box2D's b2DynamicTree (Erin Catto) with Bullet's btDbvt
 // ideas: leaves hold *fat* boxes (the tight box grown by a margin and by the predicted displacement), so a
 // proxy whose tight box stays inside its fat box costs nothing to move. Insertion descends by the
 // surface-area heuristic (branch cost = area growth of the ancestors), and AVL rotations after every

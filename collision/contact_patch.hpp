@@ -1,6 +1,6 @@
 #pragma once
-// What the narrow phase reads and produces: contact patches with their separating planes (DESIGN
-// section 4; docs/narrow-phase.md).
+// What the narrow phase reads and produces: contact patches with their separating planes
+// (docs/narrow-phase.md).
 
 #include <algorithm>
 #include <array>

@@ -1,5 +1,5 @@
 #pragma once
-// The narrow phase driver (DESIGN section 4; docs/narrow-phase.md): the contacts of each body pair,
+// The narrow phase driver (docs/narrow-phase.md): the contacts of each body pair,
 // body-plane pair and deformable body touching itself are grouped into local patches (patch_builder.hpp:
 // grown from the deepest contact over connector neighbours while the contacts' surface directions stay
 // within a bound), and each patch gets a separating plane from the local particles (plane_solver.hpp) with

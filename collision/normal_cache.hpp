@@ -1,5 +1,5 @@
 #pragma once
-// Per-particle surface normals (DESIGN section 5). Each surface particle holds an index
+// Per-particle surface normals (docs/narrow-phase.md, Surface normals). Each surface particle holds an index
 // (ParticleStore::normalIndex) into this list; interior particles hold -1. Normals are stored in the body
 // frame, so moving a body costs nothing: the principal frame of rigid and static bodies, and for deformable
 // bodies the frame of their rest shape, which follows the body's best-fit rotation (shape matching); where
@@ -114,7 +114,7 @@ class NormalCache {
   return normal;
 }
 
-/// Partial recomputation (DESIGN section 5), for breakage and deformation: re-estimates exactly the listed
+/// Partial recomputation (docs/narrow-phase.md, Updates), for breakage and deformation: re-estimates exactly the listed
 /// particles from their current connector neighbourhood (normal_estimation.hpp), in the frame the cache
 /// keeps for their body (principal frame for rigid and static bodies; for deformable ones, the world
 /// frame turned into their rest frame by the body's orientation), and sets their flags. `opened` marks the

@@ -1,5 +1,5 @@
 #pragma once
-// Particle contacts (DESIGN section 4): every pair of touching particles of two different bodies, of a
+// Particle contacts (docs/architecture.md): every pair of touching particles of two different bodies, of a
 // body and a plane, and of non-neighbouring particles of one deformable body.
 //
 // Two particles touch when |x_b - x_a| < r_a + r_b, tested on world positions; a particle touches a plane

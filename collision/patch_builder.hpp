@@ -1,5 +1,5 @@
 #pragma once
-// Contact patches (DESIGN section 4): the contacts of one contact group (a body pair, a body and a plane, or a
+// Contact patches (docs/narrow-phase.md): the contacts of one contact group (a body pair, a body and a plane, or a
 // deformable body touching itself) grouped into local regions, each of which gets one separating plane.
 //
 // A patch grows from its deepest unassigned contact. A contact joins when it touches the patch through

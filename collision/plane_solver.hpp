@@ -1,5 +1,5 @@
 #pragma once
-// The separating plane of one contact patch (DESIGN section 4, after "Volumetric Particle Separating Planes
+// The separating plane of one contact patch (docs/narrow-phase.md, after "Volumetric Particle Separating Planes
 // for Collision Detection"; docs/narrow-phase.md describes the method and its measured accuracy).
 //
 // 1. Each side's *local particles*: the patch's own particles and their k-ring connector neighbours

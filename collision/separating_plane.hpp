@@ -1,5 +1,5 @@
 #pragma once
-// The vocabulary of the local separating plane of one contact patch (DESIGN section 4, after "Volumetric
+// The vocabulary of the local separating plane of one contact patch (docs/narrow-phase.md, after "Volumetric
 // Particle Separating Planes for Collision Detection"; the method as built: docs/narrow-phase.md and
 // plane_solver.hpp).
 //

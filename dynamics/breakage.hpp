@@ -1,5 +1,5 @@
 #pragma once
-// Breakage (DESIGN section 6): forces in the rods of rigid bodies, and splitting a body into the
+// Breakage (docs/fracture.md, docs/architecture.md): forces in the rods of rigid bodies, and splitting a body into the
 // connected components of its unbroken connectors.
 //
 // A rigid body's rods are rigid, so the force each carries is not determined by the motion alone (a

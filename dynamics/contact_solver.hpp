@@ -1,5 +1,5 @@
 #pragma once
-// Sequential-impulse contact solver (DESIGN section 6), after Erin Catto's "Iterative Dynamics with
+// Sequential-impulse contact solver (docs/architecture.md, The step), after Erin Catto's "Iterative Dynamics with
 // Temporal Coherence" (GDC 2005) and "Modeling and Solving Constraints" (GDC 2009), with split impulses
 // for position correction (Catto, Box2D; Bullet's m_splitImpulse).
 //

@@ -1,5 +1,5 @@
 #pragma once
-// FCL as the independent referee of volpar's collision results (DESIGN section 10). These files are the
+// FCL as the independent referee of volpar's collision results (docs/narrow-phase.md). These files are the
 // only ones that include FCL. FCL's own broadphase manager (DynamicAABBTreeCollisionManager) and narrow
 // phase find, from scratch on the current state, which bodies' boxes overlap, which particle spheres
 // touch and which particles reach below a plane; compareContacts() checks volpar's results against that.

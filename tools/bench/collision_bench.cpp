@@ -17,8 +17,11 @@
 //
 // Before the benchmarks run, every scene is checked: FCL's pair set must equal volpar's (for the
 // broadphase: volpar's fat-box pairs whose tight boxes overlap; for contacts: the pairs of the benchmark's
-// ContactFinder, which must also equal the world's own contacts). The outcome goes to stderr, and the
-// program exits with status 1 if a check failed.
+// ContactFinder, which must also equal the world's own touching contacts: the world's finder also reports
+// speculative pairs within its contact margin, WorldSettings::contactMargin, which FCL's collide does not).
+// The outcome goes to stderr, and the program exits with status 1 if a check failed.
+//
+// --quick: the checks, then every benchmark once (one iteration, one repetition): a smoke run for the tests.
 
 #include <benchmark/benchmark.h>
 #include <fcl/fcl.h>
@@ -50,6 +53,7 @@ using Clock = std::chrono::steady_clock;
 using IdPair = std::pair<std::uint32_t, std::uint32_t>;
 
 bool gChecksFailed = false;
+bool gQuick = false;  // --quick
 
 // ---------------------------------------------------------------------------------------------------
 // helpers
@@ -349,9 +353,11 @@ std::vector<Vec3> bodyParticles(const volpar::World& w, BodyId id) {
   return out;
 }
 
+/// The touching contacts of a set as particle pairs, sorted (speculative contacts, depth <= 0, left out).
 std::vector<IdPair> volparContactPairs(const volpar::ContactSet& set) {
   std::vector<IdPair> out;
-  for (const auto& c : set.contacts) out.push_back(ordered(c.a.value, c.b.value));
+  for (const auto& c : set.contacts)
+    if (c.touching()) out.push_back(ordered(c.a.value, c.b.value));
   std::sort(out.begin(), out.end());
   return out;
 }
@@ -401,18 +407,22 @@ std::size_t grazing(const volpar::World& w, const std::vector<IdPair>& pairs) {
   return n;
 }
 
-/// FCL's pairs against those of a ContactSearch on `w` (which must also equal the world's own contacts).
+/// FCL's pairs against those of a ContactSearch on `w` (which must also equal the world's own touching
+/// contacts; the world's speculative ones are counted in the report).
 void checkPairs(const std::string& what, const volpar::World& w, std::vector<IdPair> fcl) {
   std::sort(fcl.begin(), fcl.end());
   ContactSearch search(w);
   search.find();
   const auto v = volparContactPairs(search.set);
-  const bool sameAsWorld = v == volparContactPairs(w.contacts());
+  const auto world = volparContactPairs(w.contacts());
+  const bool sameAsWorld = v == world && search.set.contacts.size() == v.size();
   const std::size_t g = grazing(w, fcl) + grazing(w, v);
   report(v == fcl && sameAsWorld,
          what + ": FCL " + std::to_string(fcl.size()) + " touching pairs, volpar " + std::to_string(v.size()) +
-             (v == fcl ? " (same set)" : " (sets differ)") + (sameAsWorld ? ", = world's" : ", NOT the world's") +
-             ", grazing " + std::to_string(g));
+             (v == fcl ? " (same set)" : " (sets differ)") +
+             (sameAsWorld ? ", = world's touching" : ", NOT the world's touching") + " (the world's " +
+             std::to_string(world.size()) + " and " + std::to_string(w.contacts().contacts.size() - world.size()) +
+             " speculative), grazing " + std::to_string(g));
 }
 
 // --- 2. one body pair
@@ -583,6 +593,10 @@ const std::int64_t kBroadphaseSizes[] = {1000, 3000, 10000};
 const std::int64_t kPileSizes[] = {1000, 8000};
 
 void configure(benchmark::internal::Benchmark* b) {
+  if (gQuick) {
+    b->Iterations(1)->Repetitions(1)->Unit(benchmark::kMicrosecond);
+    return;
+  }
   b->Repetitions(5)->ReportAggregatesOnly(true)->Unit(benchmark::kMicrosecond);
   addMinMax(b);
 }
@@ -613,6 +627,19 @@ void runChecks() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // --quick is ours; the rest goes to Google Benchmark (whose --help lists its own options and exits)
+  int kept = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--quick") {
+      gQuick = true;
+    } else {
+      if (arg == "--help") std::printf("collision_bench [--quick] [Google Benchmark options]\n"
+                                       "  --quick: the checks, then every benchmark once (one iteration)\n\n");
+      argv[kept++] = argv[i];
+    }
+  }
+  argc = kept;
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   runChecks();

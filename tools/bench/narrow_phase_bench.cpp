@@ -2,10 +2,10 @@
 // tests/collision/plane_accuracy_test.cpp. Results and the command that produced them: docs/benchmarks.md.
 //
 // Scenes: two bodies filled from primitives (box-box, box-sphere, sphere-sphere, capsule-box,
-// cylinder-box), each in a fixed set of kPoses seeded random relative poses whose primitives penetrate by
-// 0.1 to 1.5 particle radii (FCL's primitive contact decides), generated as in the accuracy test (same
-// seed: the same poses as the first kPoses of its sweep). Poses where no particles touch yet are skipped.
-// Every pose has a world of its own, built untimed, whose refreshContacts() has run.
+// cylinder-box: the primitives of the accuracy sweep, tests/collision/plane_sweep.cpp), each in a fixed set
+// of kPoses seeded random relative poses whose primitives penetrate by 0.1 to 1.5 particle radii (FCL's
+// primitive contact decides). Poses where no particles touch yet (the world's contacts, if any, all
+// speculative) are skipped. Every pose has a world of its own, built untimed, whose refreshContacts() has run.
 //
 // Each benchmark iteration is one sweep over the kPoses poses; the counter `per_pose` is the time per pose.
 //   <scene>/volpar_planes      NarrowPhase::run(world.narrowPhaseInput(), world.contacts(), patches): patches
@@ -20,10 +20,14 @@
 // These do different jobs: the planes start from contacts already found; FCL A finds the sphere contacts;
 // FCL B solves the primitive problem, which a body without a primitive (a mesh, a deformed body) lacks.
 //
-// Before the benchmarks run, every scene is checked: FCL A's touching pairs must equal volpar's contacts
-// in every pose (grazing pairs aside), and the benchmark's NarrowPhase must reproduce the world's patches.
-// The outcome and the median angles of the normals against FCL B's go to stderr; the program exits with
-// status 1 if a check failed.
+// Before the benchmarks run, every scene is checked: FCL A's touching pairs must equal volpar's touching
+// contacts in every pose (grazing pairs aside; the world also reports speculative contacts within its
+// contact margin, WorldSettings::contactMargin, which FCL's collide does not), the benchmark's
+// ContactFinder (margin 0) must find the world's touching contacts, and the benchmark's NarrowPhase must
+// reproduce the world's patches. The outcome and the median angles of the normals against FCL B's go to
+// stderr; the program exits with status 1 if a check failed.
+//
+// --quick: the checks, then every benchmark once (one iteration, one repetition): a smoke run for the tests.
 
 #include <benchmark/benchmark.h>
 #include <fcl/fcl.h>
@@ -58,6 +62,7 @@ using IdPair = std::pair<std::uint32_t, std::uint32_t>;
 constexpr int kPoses = 200;         // poses with particle contact per scene
 constexpr unsigned kSeed = 7;       // as in the accuracy test
 bool gChecksFailed = false;
+bool gQuick = false;  // --quick
 
 void report(bool ok, const std::string& line) {
   std::fprintf(stderr, "check %s: %s\n", ok ? "ok      " : "MISMATCH", line.c_str());
@@ -186,7 +191,8 @@ Scene makeScene(std::string name, Shape sa, Shape sb) {
       std::exit(2);
     }
     p.world = makeWorld(s, p);
-    if (p.world->contacts().contacts.empty()) {
+    const auto& contacts = p.world->contacts().contacts;
+    if (std::none_of(contacts.begin(), contacts.end(), [](const auto& c) { return c.touching(); })) {
       ++s.skipped;
       continue;
     }
@@ -281,10 +287,11 @@ std::size_t grazing(const volpar::World& w, const std::vector<IdPair>& pairs) {
   return n;
 }
 
-/// The world's contacts of one pose as particle pairs, sorted.
+/// The touching contacts of a set as particle pairs, sorted (speculative contacts, depth <= 0, left out).
 std::vector<IdPair> volparPairs(const volpar::ContactSet& set) {
   std::vector<IdPair> out;
-  for (const auto& c : set.contacts) out.emplace_back(std::min(c.a.value, c.b.value), std::max(c.a.value, c.b.value));
+  for (const auto& c : set.contacts)
+    if (c.touching()) out.emplace_back(std::min(c.a.value, c.b.value), std::max(c.a.value, c.b.value));
   std::sort(out.begin(), out.end());
   return out;
 }
@@ -334,7 +341,7 @@ void checkScene(const Scene& s) {
     // the benchmark's own contact search and narrow phase against the world's
     ContactSearch search(w);
     search.find();
-    if (volparPairs(search.set) == v) ++sameSearch;
+    if (volparPairs(search.set) == v && search.set.contacts.size() == v.size()) ++sameSearch;
     volpar::PlaneSettings planes = w.settings().planes;
     planes.reuse = false;  // each pose on its own
     np.setSettings(planes);
@@ -449,6 +456,10 @@ void BM_FclPrimitives(benchmark::State& state, const Scene* s) {
 }
 
 void configure(benchmark::internal::Benchmark* b) {
+  if (gQuick) {
+    b->Iterations(1)->Repetitions(1)->Unit(benchmark::kMicrosecond)->UseRealTime();
+    return;
+  }
   // real time, also for the per_pose counter (a rate, which would otherwise use CPU time)
   b->Repetitions(5)->ReportAggregatesOnly(true)->Unit(benchmark::kMicrosecond)->UseRealTime();
   addMinMax(b);
@@ -457,6 +468,19 @@ void configure(benchmark::internal::Benchmark* b) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // --quick is ours; the rest goes to Google Benchmark (whose --help lists its own options and exits)
+  int kept = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--quick") {
+      gQuick = true;
+    } else {
+      if (arg == "--help") std::printf("narrow_phase_bench [--quick] [Google Benchmark options]\n"
+                                       "  --quick: the checks, then every benchmark once (one iteration)\n\n");
+      argv[kept++] = argv[i];
+    }
+  }
+  argc = kept;
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   std::vector<Scene> scenes;
