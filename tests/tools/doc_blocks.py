@@ -45,6 +45,7 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 
@@ -411,14 +412,19 @@ class Checker:
         env.pop("PYTHONPATH", None)  # what the block exports, as for a user
         env["PATH"] = os.path.join(os.path.realpath(self.build), "tools") + os.pathsep + env.get("PATH", "")
         env["PYTHONDONTWRITEBYTECODE"] = "1"
+        # a session of its own, so that a block that runs too long is ended with every program it started
+        proc = subprocess.Popen(["bash", "-c", "\n".join(script)], cwd=self.tree(doc), env=env, text=True,
+                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                start_new_session=True)
         try:
-            r = subprocess.run(["bash", "-c", "\n".join(script)], cwd=self.tree(doc), env=env, capture_output=True,
-                               text=True, timeout=BLOCK_TIMEOUT)
+            output, _ = proc.communicate(timeout=BLOCK_TIMEOUT)
         except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
             self.fail(where, "the block runs longer than %d s" % BLOCK_TIMEOUT)
             return
-        if r.returncode != 0:
-            self.fail(where, "the block exits %d: %s" % (r.returncode, (r.stdout + r.stderr).strip()[-1200:]))
+        if proc.returncode != 0:
+            self.fail(where, "the block exits %d: %s" % (proc.returncode, output.strip()[-1200:]))
 
     # ---- prose
     def prose(self, doc):
