@@ -22,7 +22,10 @@ Blocks, by the first word of the fence's info string:
                 (so the relative paths of the docs work and nothing is written into the source tree), whose
                 build/release is a link to the build under test. PATH starts with that build's tools/ folder,
                 as README.md tells users to set it (`volpar` by name; the benchmarks by their path); PYTHONPATH
-                is what the block exports. A line that matches SKIP (below) is only checked, never run.
+                is what the block exports. A line that matches SKIP (below), or SKIP_UNLESS where what it
+                needs is missing, is only checked, never run; one that matches RETRY is tried three times.
+                A block has BLOCK_TIMEOUT seconds. Outputs stay in WORKDIR (and what a command writes under
+                build/release lands in the build folder).
   ```sh long    a long run (benchmarks, sweeps): run as `sh`, each program of SHORTEN given the arguments there
                 after its own (they override the block's: a later option wins), so the test takes seconds.
                 A command in a `long` block that SHORTEN does not know is a failure.
