@@ -11,6 +11,7 @@
 
 #include "volpar/engine/core/version.hpp"
 #include "tools/commands.hpp"
+#include "tools/render_command.hpp"
 
 namespace {
 
@@ -116,9 +117,28 @@ int main(int argc, char** argv) {
   CLI::App* xdmfCmd = app.add_subcommand("xdmf", "(Re)write the ParaView XDMF sidecar of a trajectory");
   xdmfCmd->add_option("file", xdmfPath, "Trajectory (.h5)")->required()->check(CLI::ExistingFile);
 
+  RenderArgs render;
+  CLI::App* renderCmd = app.add_subcommand("render", "Draw frames of a trajectory to PNG, or an animation to MP4 or GIF (with ffmpeg)");
+  renderCmd->add_option("file", render.input, "Trajectory (.h5)")->required();
+  renderCmd->add_option("-o,--output", render.output,
+                        "Picture (.png) or animation (.mp4, .gif) (default: the trajectory's name with .png, in the current "
+                        "folder); with --frames and .png, one file a frame: OUT-0000.png, OUT-0001.png, ...");
+  auto* renderFrames = renderCmd->add_option("--frames", render.frames,
+                                             "Frames FIRST:LAST[:STRIDE] (indices of complete frames, LAST included, negative "
+                                             "from the end; FIRST, LAST may be left out) (default for MP4/GIF: all)");
+  renderCmd->add_option("--frame", render.frame, "One frame (index, negative from the end) (default for PNG: the last complete frame)")
+      ->excludes(renderFrames);
+  renderCmd->add_option("--view", render.view, "Camera: iso, front, side or top (default iso)");
+  renderCmd->add_option("--size", render.size, "Image size WIDTHxHEIGHT in pixels (default 960x720)");
+  renderCmd->add_option("--fps", render.fps, "Frames per second of an animation (default 30)")->check(positiveFinite());
+  renderCmd->add_flag("--connectors", render.connectors, "Draw unbroken connectors as lines (rods black, springs grey, bonds gold), particles smaller");
+  renderCmd->add_flag("--contacts", render.contacts, "Mark the contact points of each frame");
+  renderCmd->add_flag("--normals", render.normals, "Draw the contact patches' normals as arrows");
+  renderCmd->add_flag("--json", render.json, "Print one JSON object with the outputs, the camera and the palette on stdout");
+
   // every command-line error exits with status 1 (help and version with 0)
   if (argc > 1 && argv[1][0] != '-' && app.get_subcommands([&](const CLI::App* sub) { return sub->get_name() == argv[1]; }).empty()) {
-    std::fprintf(stderr, "volpar: error: unknown command '%s'; expected run, check, inspect or xdmf\nRun with --help for more information.\n", argv[1]);
+    std::fprintf(stderr, "volpar: error: unknown command '%s'; expected run, check, inspect, xdmf or render\nRun with --help for more information.\n", argv[1]);
     return 1;
   }
   try {
@@ -139,6 +159,7 @@ int main(int argc, char** argv) {
     if (checkCmd->parsed()) return volpar::cli::check(check);
     if (inspectCmd->parsed()) return inspect(inspectPath, inspectJson);
     if (xdmfCmd->parsed()) return xdmf(xdmfPath);
+    if (renderCmd->parsed()) return renderTrajectory(render);
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "volpar: error: out of memory\n");
     return 1;

@@ -444,4 +444,188 @@ Result<Checkpoint> H5mdReader::checkpoint() const {
   return cp;
 }
 
+// ---- reads for volpar render
+
+namespace {
+
+/// Rows first .. first + n - 1 of an [N] or [N, k] dataset as doubles, after checking it against `e`.
+std::vector<double> readRange(hid_t file, const std::string& name, std::uint64_t first, std::uint64_t n, const Expect& e,
+                              std::uint64_t limit) {
+  std::vector<hsize_t> d;
+  const Handle ds = openChecked(file, name, e, limit, d);
+  if (first > d[0] || n > d[0] - first)
+    throw ReadFailure{"rows " + std::to_string(first) + " to " + std::to_string(first + n) + " (exclusive) are past the end of /" +
+                      name + ", which has " + std::to_string(d[0]) + " rows; expected " + e.what};
+  std::vector<hsize_t> start(d.size(), 0), count = d;
+  start[0] = first;
+  count[0] = n;
+  std::vector<double> out(elements(count));
+  if (out.empty()) return out;
+  Handle fileSpace(H5Dget_space(ds.get()), H5Sclose, "dataspace");
+  if (H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr) < 0)
+    throw ReadFailure{"cannot select rows of /" + name};
+  Handle memSpace(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr), H5Sclose, "dataspace");
+  if (H5Dread(ds.get(), H5T_NATIVE_DOUBLE, memSpace.get(), fileSpace.get(), H5P_DEFAULT, out.data()) < 0)
+    throw ReadFailure{"cannot read /" + name};
+  return out;
+}
+
+/// Whole numbers of a [N] integer dataset, each from `lo` to `hi`.
+std::vector<std::int64_t> readIndices(hid_t file, const std::string& name, std::int64_t lo, std::int64_t hi, const std::string& what,
+                                      std::uint64_t limit) {
+  std::vector<std::int64_t> v = readAll<std::int64_t>(file, name, H5T_NATIVE_INT64, {H5T_INTEGER, 1, {}, what.c_str()}, limit);
+  for (std::size_t i = 0; i < v.size(); ++i)
+    if (v[i] < lo || v[i] > hi)
+      throw ReadFailure{"/" + name + "[" + std::to_string(i) + "] is " + std::to_string(v[i]) + "; expected " + what + ", from " +
+                        std::to_string(lo) + " to " + std::to_string(hi)};
+  return v;
+}
+
+/// Vectors [N, 3] as Vec3, each finite.
+std::vector<Vec3> toVec3(const std::vector<double>& raw, const std::string& name) {
+  std::vector<Vec3> out(raw.size() / 3);
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i] = Vec3(raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]);
+    if (!out[i].allFinite()) throw ReadFailure{"/" + name + " row " + std::to_string(i) + " is not finite; expected finite vectors"};
+  }
+  return out;
+}
+
+/// The rows of frame t of a ragged group (/contacts, /patches): its offset and count there, checked.
+std::pair<std::uint64_t, std::uint64_t> raggedRows(hid_t file, const std::string& group, std::size_t frame, std::uint64_t limit) {
+  if (H5Lexists(file, group.c_str(), H5P_DEFAULT) <= 0) throw ReadFailure{"missing group /" + group + " (ragged rows per frame)"};
+  const Expect perFrame{H5T_INTEGER, 1, {}, "one row number per frame, [T]"};
+  const double offset = readRow(file, group + "/offset", frame, perFrame, limit).at(0);
+  const double count = readRow(file, group + "/count", frame, perFrame, limit).at(0);
+  if (!(offset >= 0.0) || !(count >= 0.0) || offset > 9.0e15 || count > 9.0e15)
+    throw ReadFailure{"/" + group + "/offset or /" + group + "/count of frame " + std::to_string(frame) +
+                      " is negative or too large; expected a row range"};
+  return {static_cast<std::uint64_t>(offset), static_cast<std::uint64_t>(count)};
+}
+
+}  // namespace
+
+Result<std::vector<double>> H5mdReader::radii() const {
+  try {
+    const std::string name = "particles/all/radius";
+    std::vector<double> r = readAll<double>(impl_->file, name, H5T_NATIVE_DOUBLE, {H5T_FLOAT, 1, {}, "one radius per particle, [P]"}, impl_->limit);
+    for (std::size_t i = 0; i < r.size(); ++i)
+      if (!std::isfinite(r[i]) || !(r[i] > 0.0) || r[i] > 1e9)
+        throw ReadFailure{"/" + name + "[" + std::to_string(i) + "] is " + std::to_string(r[i]) + "; expected a radius above 0 and at most 1e9 m"};
+    return r;
+  } catch (const ReadFailure& e) {
+    return Error{impl_->path, 0, 0, e.what};
+  }
+}
+
+Result<std::vector<std::array<double, 4>>> H5mdReader::planes() const {
+  try {
+    const std::string name = "parameters/planes";
+    const std::vector<double> raw = readAll<double>(impl_->file, name, H5T_NATIVE_DOUBLE, {H5T_FLOAT, 2, {4}, "planes [n, 4]: normal and offset"}, impl_->limit);
+    std::vector<std::array<double, 4>> out(raw.size() / 4);
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      for (std::size_t k = 0; k < 4; ++k) out[i][k] = raw[4 * i + k];
+      const double n = std::sqrt(out[i][0] * out[i][0] + out[i][1] * out[i][1] + out[i][2] * out[i][2]);
+      if (!std::isfinite(n) || !std::isfinite(out[i][3]) || std::abs(n - 1.0) > 1e-6 || std::abs(out[i][3]) > 1e9)
+        throw ReadFailure{"/" + name + " row " + std::to_string(i) + " is not a unit normal and an offset within 1e9 m; expected planes [n, 4]"};
+    }
+    return out;
+  } catch (const ReadFailure& e) {
+    return Error{impl_->path, 0, 0, e.what};
+  }
+}
+
+Result<std::vector<std::string>> H5mdReader::bodyKinds() const {
+  try {
+    return readStrings(impl_->file, "particles/bodies/kind", false, impl_->limit);
+  } catch (const ReadFailure& e) {
+    return Error{impl_->path, 0, 0, e.what};
+  }
+}
+
+Result<std::vector<std::int32_t>> H5mdReader::particleBodies(std::size_t frame, std::size_t bodies) const {
+  try {
+    const std::string name = "particles/all/body/value";
+    const std::size_t particles = readAll<double>(impl_->file, "particles/all/radius", H5T_NATIVE_DOUBLE,
+                                                  {H5T_FLOAT, 1, {}, "one radius per particle, [P]"}, impl_->limit).size();
+    const std::vector<double> raw =
+        readRow(impl_->file, name, frame, {H5T_INTEGER, 2, {static_cast<hsize_t>(particles)}, "body indices [T, P] (int32)"}, impl_->limit);
+    std::vector<std::int32_t> out(raw.size());
+    for (std::size_t i = 0; i < raw.size(); ++i) {
+      if (!(raw[i] >= 0.0) || !(raw[i] < static_cast<double>(bodies)))
+        throw ReadFailure{"/" + name + " frame " + std::to_string(frame) + " particle " + std::to_string(i) + " has body " +
+                          std::to_string(static_cast<long long>(std::clamp(raw[i], -9e18, 9e18))) + "; expected a body index from 0 to " +
+                          std::to_string(static_cast<long long>(bodies) - 1)};
+      out[i] = static_cast<std::int32_t>(raw[i]);
+    }
+    return out;
+  } catch (const ReadFailure& e) {
+    return Error{impl_->path, 0, 0, e.what};
+  }
+}
+
+Result<ConnectorTable> H5mdReader::connectors(std::size_t particles) const {
+  const hid_t f = impl_->file;
+  const std::uint64_t limit = impl_->limit;
+  ConnectorTable t;
+  try {
+    if (H5Lexists(f, "connectors", H5P_DEFAULT) <= 0)
+      throw ReadFailure{"the trajectory has no /connectors group (written by newer versions of volpar run); expected particle_a, "
+                        "particle_b and kind [C]"};
+    const auto p = static_cast<std::int64_t>(particles) - 1;
+    const std::vector<std::int64_t> a = readIndices(f, "connectors/particle_a", 0, p, "particle indices [C]", limit);
+    const std::vector<std::int64_t> b = readIndices(f, "connectors/particle_b", 0, p, "particle indices [C]", limit);
+    const std::vector<std::int64_t> kind = readIndices(f, "connectors/kind", 0, 2, "connector kinds [C] (0 rod, 1 spring, 2 bond)", limit);
+    if (b.size() != a.size() || kind.size() != a.size())
+      throw ReadFailure{"/connectors/particle_a, particle_b and kind have " + std::to_string(a.size()) + ", " + std::to_string(b.size()) +
+                        " and " + std::to_string(kind.size()) + " entries; expected one each per connector"};
+    t.particleA.assign(a.begin(), a.end());
+    t.particleB.assign(b.begin(), b.end());
+    t.kind.assign(kind.begin(), kind.end());
+    t.breakStep.assign(a.size(), std::numeric_limits<std::int64_t>::max());
+    if (H5Lexists(f, "breakage", H5P_DEFAULT) > 0) {
+      const auto c = static_cast<std::int64_t>(a.size()) - 1;
+      const std::vector<std::int64_t> which = readIndices(f, "breakage/connector", 0, c, "connector indices [N]", limit);
+      const std::vector<std::int64_t> step =
+          readIndices(f, "breakage/step", 0, std::numeric_limits<std::int64_t>::max(), "break steps [N]", limit);
+      if (step.size() != which.size())
+        throw ReadFailure{"/breakage/connector and /breakage/step have " + std::to_string(which.size()) + " and " +
+                          std::to_string(step.size()) + " entries; expected one each per event"};
+      for (std::size_t i = 0; i < which.size(); ++i) {
+        std::int64_t& s = t.breakStep[static_cast<std::size_t>(which[i])];
+        s = std::min(s, step[i]);
+      }
+    }
+  } catch (const ReadFailure& e) {
+    return Error{impl_->path, 0, 0, e.what};
+  }
+  return t;
+}
+
+Result<FrameRows> H5mdReader::contactPoints(std::size_t frame) const {
+  try {
+    const auto [first, n] = raggedRows(impl_->file, "contacts", frame, impl_->limit);
+    FrameRows rows;
+    rows.point = toVec3(readRange(impl_->file, "contacts/point", first, n, {H5T_FLOAT, 2, {3}, "contact points [N, 3]"}, impl_->limit),
+                        "contacts/point");
+    return rows;
+  } catch (const ReadFailure& e) {
+    return Error{impl_->path, 0, 0, e.what};
+  }
+}
+
+Result<FrameRows> H5mdReader::patchNormals(std::size_t frame) const {
+  try {
+    const auto [first, n] = raggedRows(impl_->file, "patches", frame, impl_->limit);
+    FrameRows rows;
+    rows.point = toVec3(readRange(impl_->file, "patches/point", first, n, {H5T_FLOAT, 2, {3}, "patch points [N, 3]"}, impl_->limit),
+                        "patches/point");
+    rows.normal = toVec3(readRange(impl_->file, "patches/normal", first, n, {H5T_FLOAT, 2, {3}, "patch normals [N, 3]"}, impl_->limit),
+                         "patches/normal");
+    return rows;
+  } catch (const ReadFailure& e) {
+    return Error{impl_->path, 0, 0, e.what};
+  }
+}
+
 }  // namespace volpar

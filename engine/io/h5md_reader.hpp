@@ -1,6 +1,7 @@
 #pragma once
 // Reading volpar trajectories back (for `volpar inspect`, `volpar xdmf` and tests).
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -44,6 +45,20 @@ struct Checkpoint {
   StateArchive state;              ///< World::saveState's arrays
 };
 
+/// The connectors of a trajectory (/connectors) and the step each broke at (/breakage), for `volpar render`.
+struct ConnectorTable {
+  std::vector<std::int32_t> particleA;  ///< [C] particle index
+  std::vector<std::int32_t> particleB;  ///< [C] particle index
+  std::vector<std::int32_t> kind;       ///< [C] 0 rod, 1 spring, 2 bond
+  std::vector<std::int64_t> breakStep;  ///< [C] gone in frames with step >= breakStep (INT64_MAX: never broke)
+};
+
+/// Ragged rows of one frame of /contacts or /patches: points [m] and, for patches, unit normals.
+struct FrameRows {
+  std::vector<Vec3> point;   ///< [N] world frame
+  std::vector<Vec3> normal;  ///< [N] world frame (patches only)
+};
+
 class H5mdReader {
  public:
   [[nodiscard]] static Result<std::unique_ptr<H5mdReader>> open(const std::string& path);
@@ -60,6 +75,20 @@ class H5mdReader {
   [[nodiscard]] Result<Checkpoint> checkpoint() const;
   /// Body shape-frame orientations of frame t, [B].
   [[nodiscard]] Result<std::vector<Quat>> bodyOrientations(std::size_t frame) const;
+  /// Particle radii [m], [P], each finite and above 0.
+  [[nodiscard]] Result<std::vector<double>> radii() const;
+  /// The scene's planes (/parameters/planes): unit normal (3) and offset [m] of n.x = offset, [n].
+  [[nodiscard]] Result<std::vector<std::array<double, 4>>> planes() const;
+  /// Body kinds ("rigid", "deformable", "static"), [B].
+  [[nodiscard]] Result<std::vector<std::string>> bodyKinds() const;
+  /// The body index of each particle in frame t, [P], each from 0 to `bodies` - 1.
+  [[nodiscard]] Result<std::vector<std::int32_t>> particleBodies(std::size_t frame, std::size_t bodies) const;
+  /// /connectors with their break steps from /breakage; an error where the file has no /connectors.
+  [[nodiscard]] Result<ConnectorTable> connectors(std::size_t particles) const;
+  /// The contact points of frame t (/contacts, ragged by offset and count).
+  [[nodiscard]] Result<FrameRows> contactPoints(std::size_t frame) const;
+  /// The patch points and normals of frame t (/patches, ragged by offset and count).
+  [[nodiscard]] Result<FrameRows> patchNormals(std::size_t frame) const;
 
  private:
   struct Impl;

@@ -25,6 +25,8 @@ packages=(
   libeigen3-dev libfcl-dev libccd-dev libhdf5-dev libyaml-cpp-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev libbullet-dev
   python3 python3-h5py python3-numpy python3-yaml python3-matplotlib hdf5-tools
+  # volpar render: PNG through libpng, MP4 and GIF through the ffmpeg program
+  libpng-dev ffmpeg
   # the Python module (python/) and its tests
   pybind11-dev python3-pybind11 python3-dev python3-pytest
   # the hardening preset: Clang 14 and its runtimes (libFuzzer, AddressSanitizer, UBSan: libclang-rt-14-dev)
