@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <csignal>
 #include <filesystem>
+#include <thread>
 
 #include "volpar/engine/io/xdmf_writer.hpp"
 
@@ -45,6 +46,11 @@ std::optional<Error> refuseOverwrite(const std::string& output, const std::strin
   for (const std::string& in : inputs)
     if (same(in)) return Error{output, 0, 0, "the output is " + in + ", which the scene reads; refusing to write over an input"};
   return std::nullopt;
+}
+
+int defaultThreads() {
+  const unsigned n = std::thread::hardware_concurrency();
+  return n == 0 ? 1 : static_cast<int>(std::min(n, 256u));
 }
 
 std::string partialPath(const std::string& output) {
@@ -87,6 +93,7 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
       return created.error();
     }
     writer = std::move(created.value());
+    writer->setCommitInterval(options.commitSeconds);
     if (auto ok = writer->writeFrame(world); !ok) {
       removePartial();
       return ok.error();

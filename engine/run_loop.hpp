@@ -30,6 +30,10 @@ inline constexpr long long kMaxSteps = 1'000'000'000'000LL;
                                                    const std::vector<std::string>& inputs,
                                                    const std::string& inputName = "the scene file");
 
+/// Worker threads a run takes when not told: the machine's hardware threads (1 where it cannot tell), at
+/// most 256. The trajectory is the same bit for bit whatever the count.
+[[nodiscard]] int defaultThreads();
+
 /// Where a run writes its trajectory until it ends well (`out.partial.h5` for `out.h5`); an interrupted or
 /// failed run leaves its complete frames there.
 [[nodiscard]] std::string partialPath(const std::string& output);
@@ -45,6 +49,10 @@ struct RunOptions {
   /// When > 0: a checkpoint (the whole state, H5mdWriter::writeCheckpoint) after every step whose index is a
   /// multiple of it, after the last step and when interrupted; the file keeps the latest.
   std::int64_t checkpointEvery = 0;
+  /// Seconds between commits of the trajectory (H5mdWriter::commit: the frames written are flushed and then
+  /// counted complete); 0: after every frame. A run killed with SIGKILL loses at most the frames of the last
+  /// interval; an interrupted, failed or finished run commits every frame it wrote.
+  double commitSeconds = 0.0;
   /// Testing aid: when > 0, the process kills itself (SIGKILL, no cleanup) right after writing this many
   /// frames, to show that a killed run leaves a readable file.
   std::int64_t killAfterFrames = 0;

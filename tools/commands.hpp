@@ -36,7 +36,8 @@ struct RunArgs {
   double duration = 0.0;     ///< 0: the scene's
   int every = 0;             ///< 0: the scene's
   bool json = false;
-  int threads = 1;
+  int threads = 0;           ///< 0: defaultThreads()
+  double flushSeconds = 2.0; ///< seconds between commits of the trajectory (0: after every frame)
   std::int64_t seed = -1;    ///< -1: the scene's
   std::int64_t killAfterFrames = 0;
   std::int64_t checkpointEvery = 0;  ///< 0: no checkpoints

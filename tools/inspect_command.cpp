@@ -95,6 +95,12 @@ int inspect(const std::string& path, bool json) {
         .field("energy_start", e0)
         .field("energy_end", e1)
         .field("checkpoint_step", s.checkpointStep)
+        .field("dt", s.dt)
+        .field("bodies_alive", s.bodiesAlive)
+        .field("breakages", s.breakages)
+        .field("contacts", s.contacts)
+        .field("patches", s.patches)
+        .field("connectors", s.connectors)
         .end();
     std::cout << j.str() << std::endl;
     return 0;
@@ -108,8 +114,12 @@ int inspect(const std::string& path, bool json) {
                 static_cast<long long>(s.step.back()), s.time.front(), s.time.back());
   std::printf("\n");
   if (s.tornFrames > 0)
-    std::printf("             (then %zu frame cut short, ignored: the run was killed or its disk filled)\n", s.tornFrames);
-  std::printf("particles    %zu\nbodies       %zu\n", s.particles, s.bodies);
+    std::printf("             (then %zu written after the last flush, ignored: the run was killed or its disk filled)\n", s.tornFrames);
+  if (s.dt > 0.0) std::printf("dt           %.6g s\n", s.dt);
+  std::printf("particles    %zu\n", s.particles);
+  std::printf("bodies       %zu, %zu in the last frame (bodies that broke apart are replaced by their fragments)\n", s.bodies, s.bodiesAlive);
+  std::printf("connectors   %zu, %zu broke by the last frame\n", s.connectors, s.breakages);
+  if (s.contacts >= 0) std::printf("contacts     %lld in the last frame, in %lld patches\n", static_cast<long long>(s.contacts), static_cast<long long>(s.patches));
   if (!s.total.empty())
     std::printf("energy       %.9g J -> %.9g J (kinetic %.6g -> %.6g J)\n", e0, e1, s.kinetic.front(), s.kinetic.back());
   if (s.checkpointStep >= 0)
@@ -130,6 +140,24 @@ int xdmf(const std::string& path) {
   f.step = sum->step;
   f.patchOffset = sum->patchOffset;
   f.patchCount = sum->patchCount;
+  f.connectors = sum->connectors;
+  f.connectorOffset = sum->connectorLineOffset;
+  auto planes = (*reader)->planes();
+  if (!planes) return fail(planes.error());
+  f.planes = std::move(planes.value());
+  // the particles' bounds, from the first and the last complete frame
+  for (const std::size_t frame : {std::size_t{0}, sum->frames - 1}) {
+    auto x = (*reader)->positions(frame);
+    if (!x) return fail(x.error());
+    for (std::size_t i = 0; i < x->size(); ++i)
+      for (std::size_t k = 0; k < 3; ++k) {
+        const double v = (*x)[i][static_cast<Eigen::Index>(k)];
+        if (!std::isfinite(v)) continue;
+        const bool first = frame == 0 && i == 0;
+        f.lo[k] = first ? v : std::min(f.lo[k], v);
+        f.hi[k] = first ? v : std::max(f.hi[k], v);
+      }
+  }
   if (auto ok = writeXdmf(f); !ok) return fail(ok.error());
   std::printf("%s\n", sidecarPath(path).c_str());
   return 0;

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <chrono>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -25,13 +26,30 @@ std::atomic<bool> gStop{false};
 
 extern "C" void onSignal(int) { gStop.store(true); }
 
+/// h:mm:ss, or m:ss under an hour
+std::string clockText(double seconds) {
+  const auto s = static_cast<long long>(std::max(0.0, std::min(seconds, 3.6e8)) + 0.5);
+  char buf[32];
+  if (s >= 3600) std::snprintf(buf, sizeof buf, "%lld:%02lld:%02lld", s / 3600, s / 60 % 60, s % 60);
+  else std::snprintf(buf, sizeof buf, "%lld:%02lld", s / 60, s % 60);
+  return buf;
+}
+
+/// The progress bar on a terminal: share done, steps, rate, time elapsed and the time left at that rate.
 void progressBar(std::int64_t done, std::int64_t total) {
-  const int width = 40;
+  using Clock = std::chrono::steady_clock;
+  static const Clock::time_point start = Clock::now();
+  static std::int64_t first = -1;  // the steps done at the first call (a resumed run starts past 0)
+  if (first < 0) first = done;
+  const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+  const double rate = elapsed > 0.0 ? static_cast<double>(done - first) / elapsed : 0.0;
+  const int width = 30;
   const double f = total > 0 ? static_cast<double>(done) / static_cast<double>(total) : 1.0;
   const int filled = static_cast<int>(f * width);
-  std::fprintf(stderr, "\r[%s%s] %5.1f%% step %lld/%lld", std::string(static_cast<std::size_t>(filled), '#').c_str(),
-               std::string(static_cast<std::size_t>(width - filled), ' ').c_str(), 100.0 * f,
-               static_cast<long long>(done), static_cast<long long>(total));
+  const std::string left = rate > 0.0 ? clockText(static_cast<double>(total - done) / rate) : "?";
+  std::fprintf(stderr, "\r[%s%s] %5.1f%%  step %lld/%lld  %.0f steps/s  %s elapsed  %s left ",
+               std::string(static_cast<std::size_t>(filled), '#').c_str(), std::string(static_cast<std::size_t>(width - filled), ' ').c_str(),
+               100.0 * f, static_cast<long long>(done), static_cast<long long>(total), rate, clockText(elapsed).c_str(), left.c_str());
   if (done >= total) std::fprintf(stderr, "\n");
   std::fflush(stderr);
 }
@@ -71,7 +89,7 @@ int run(const RunArgs& args) {
   auto built = buildScene(*desc, args.limits.build());
   if (!built) return fail(built.error());
   World& world = built->world;
-  world.setThreads(args.threads);
+  world.setThreads(args.threads > 0 ? args.threads : defaultThreads());
   if (checkpoint) {
     if (auto restored = world.restoreState(checkpoint->state); !restored) {
       Error e = restored.error();
@@ -106,6 +124,7 @@ int run(const RunArgs& args) {
   if (isatty(STDERR_FILENO)) options.progress = progressBar;
   options.stop = &gStop;
   options.killAfterFrames = args.killAfterFrames;
+  options.commitSeconds = args.killAfterFrames > 0 ? 0.0 : args.flushSeconds;
   // Ctrl-C, kill, a scheduler's time limit or a closed terminal: finish the step and close the file
   for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, onSignal);
 
@@ -120,7 +139,7 @@ int run(const RunArgs& args) {
   auto summary = runWorld(world, meta, options);
   if (!summary) return fail(summary.error());
   const RunSummary& s = *summary;
-  const double drift = s.energyEnd.total() - s.energyStart.total();
+  const double change = s.energyEnd.total() - s.energyStart.total();
   const StageTimes& t = s.stageTimes;
   if (args.json) {
     JsonWriter j;
@@ -137,7 +156,7 @@ int run(const RunArgs& args) {
         .field("simulated_seconds", world.time())
         .field("energy_start", s.energyStart.total())
         .field("energy_end", s.energyEnd.total())
-        .field("energy_drift", drift)
+        .field("energy_change", change)
         .field("contacts", world.stats().contacts)
         .field("connectors_broken", s.connectorsBroken)
         .field("bodies_created", s.bodiesCreated)
@@ -208,7 +227,8 @@ int run(const RunArgs& args) {
         if (s.patchesByCase[k] > 0) std::printf(" %s %zu", planeCaseName(static_cast<PlaneCase>(k)), s.patchesByCase[k]);
       std::printf("\n");
     }
-    std::printf("energy       %.9g J -> %.9g J (drift %.3g J)\n", s.energyStart.total(), s.energyEnd.total(), drift);
+    // (contacts, damping and breaking bonds take energy out; a change is not an integration error)
+    std::printf("energy       %.9g J -> %.9g J (change %.3g J)\n", s.energyStart.total(), s.energyEnd.total(), change);
     if (!s.output.empty())
       std::printf("trajectory   %s (%zu frames), sidecar %s\n", s.output.c_str(), s.frames, sidecarPath(s.output).c_str());
   }

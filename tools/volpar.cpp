@@ -81,8 +81,13 @@ int main(int argc, char** argv) {
       ->check(wholeNumber(0, 9007199254740992))
       ->excludes(resume);
   runCmd->add_flag("--json", run.json, "Print one JSON object with the summary on stdout");
-  runCmd->add_option("--threads", run.threads, "Worker threads for the step (default 1; the results are the same)")
+  runCmd->add_option("--threads", run.threads,
+                     "Worker threads for the step (default: this machine's hardware threads; the trajectory is the same bit for bit)")
       ->check(wholeNumber(1, 256));
+  runCmd->add_option("--flush-every", run.flushSeconds,
+                     "Seconds between flushes of the trajectory to disk (default 2; 0: after every frame). A run killed with "
+                     "SIGKILL keeps every frame up to the last flush; Ctrl-C, SIGTERM and errors lose nothing")
+      ->check(CLI::Range(0.0, 86400.0));
   const auto limits = [](CLI::App* cmd, SceneLimits& l) {
     cmd->add_option("--allow-dir", l.allowDirs, "A folder the scene's mesh files may lie in besides the scene's own (repeatable)")
         ->check(CLI::ExistingDirectory);

@@ -204,6 +204,24 @@ std::optional<std::int64_t> readCountAttr(hid_t file, const std::string& object,
   return v;
 }
 
+/// An optional number attribute (one value); nullopt when the object or the attribute is absent.
+std::optional<double> readNumberAttr(hid_t file, const std::string& object, const std::string& name) {
+  const std::string where = "/" + object + "@" + name;
+  if (H5Lexists(file, object.c_str(), H5P_DEFAULT) <= 0 || H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) <= 0)
+    return std::nullopt;
+  Handle attr(H5Aopen_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+              "cannot open attribute " + where);
+  Handle type(H5Aget_type(attr.get()), H5Tclose, "attribute type");
+  Handle space(H5Aget_space(attr.get()), H5Sclose, "attribute dataspace");
+  const H5T_class_t c = H5Tget_class(type.get());
+  if ((c != H5T_INTEGER && c != H5T_FLOAT) || H5Sget_simple_extent_npoints(space.get()) != 1)
+    throw ReadFailure{where + " is not one number"};
+  double v = 0.0;
+  if (H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &v) < 0) throw ReadFailure{"cannot read " + where};
+  if (!std::isfinite(v)) throw ReadFailure{where + " is not a finite number"};
+  return v;
+}
+
 }  // namespace
 
 struct H5mdReader::Impl {
@@ -253,12 +271,13 @@ Result<TrajectorySummary> H5mdReader::summary() const {
     s.step = readAll<std::int64_t>(f, "particles/all/position/step", H5T_NATIVE_INT64, stepPerFrame, limit);
     s.time = readAll<double>(f, "particles/all/position/time", H5T_NATIVE_DOUBLE, perFrame, limit);
     s.frames = s.step.size();
-    // a run killed (or stopped by a full disk) in the middle of a frame: frames_complete excludes that frame
+    // a run killed (or stopped by a full disk) between commits: frames_complete excludes the frames written since
+    // the last commit, whole or cut short
     const std::optional<std::int64_t> complete = readCountAttr(f, "parameters", "frames_complete");
     if (complete) {
-      if (*complete < 0 || static_cast<std::uint64_t>(*complete) > s.frames || s.frames - static_cast<std::uint64_t>(*complete) > 1)
+      if (*complete < 0 || static_cast<std::uint64_t>(*complete) > s.frames)
         throw ReadFailure{"/parameters@frames_complete is " + std::to_string(*complete) + " but /particles/all/position/step has " +
-                          std::to_string(s.frames) + " entries; expected the count of them, or one less (a frame cut short)"};
+                          std::to_string(s.frames) + " entries; expected the count of them or fewer (frames written after the last commit)"};
       s.tornFrames = s.frames - static_cast<std::size_t>(*complete);
       s.frames = static_cast<std::size_t>(*complete);
     }
@@ -276,8 +295,8 @@ Result<TrajectorySummary> H5mdReader::summary() const {
     }
     // the per-frame records agree with each other and with the frames of the positions (each record of a
     // frame cut short may be there or not, whichever of them the run had extended when it stopped)
-    const std::size_t written = complete ? s.frames + 1 : s.frames;
-    const std::string expected = complete ? std::to_string(s.frames) + " complete frames (or one more, cut short)"
+    const std::size_t written = complete ? std::numeric_limits<std::size_t>::max() : s.frames;
+    const std::string expected = complete ? std::to_string(s.frames) + " complete frames (or more, written after the last commit)"
                                           : std::to_string(s.frames) + " frames";
     const auto frames = [&](const std::string& name, std::size_t n) {
       if (n < s.frames || n > written)
@@ -306,6 +325,46 @@ Result<TrajectorySummary> H5mdReader::summary() const {
     if (!s.patchOffset.empty()) {
       s.patchOffset.resize(s.frames);
       s.patchCount.resize(s.frames);
+    }
+    // what the last frame holds, for inspect
+    if (const auto dt = readNumberAttr(f, "parameters", "dt")) s.dt = *dt;
+    if (s.frames > 0) {
+      const std::int64_t lastStep = s.step[s.frames - 1];
+      if (H5Lexists(f, "breakage", H5P_DEFAULT) > 0) {
+        const std::vector<std::int64_t> broke =
+            readAll<std::int64_t>(f, "breakage/step", H5T_NATIVE_INT64, {H5T_INTEGER, 1, {}, "one step per broken connector, [N]"}, limit);
+        s.breakages = static_cast<std::size_t>(std::count_if(broke.begin(), broke.end(), [&](std::int64_t k) { return k <= lastStep; }));
+      }
+      const Expect perBody{H5T_INTEGER, 1, {}, "one step per body, [B]"};
+      const std::vector<std::int64_t> created = readAll<std::int64_t>(f, "particles/bodies/created", H5T_NATIVE_INT64, perBody, limit);
+      const std::vector<std::int64_t> retired = readAll<std::int64_t>(f, "particles/bodies/retired", H5T_NATIVE_INT64, perBody, limit);
+      for (std::size_t i = 0; i < std::min(created.size(), retired.size()); ++i)
+        s.bodiesAlive += created[i] <= lastStep && (retired[i] < 0 || lastStep < retired[i]) ? 1 : 0;
+      const auto last = [&](const char* name) -> std::int64_t {
+        if (H5Lexists(f, name, H5P_DEFAULT) <= 0) return -1;
+        const std::vector<std::int64_t> v = readAll<std::int64_t>(f, name, H5T_NATIVE_INT64, {H5T_INTEGER, 1, {}, "one count per frame, [T]"}, limit);
+        return v.size() >= s.frames ? v[s.frames - 1] : -1;
+      };
+      if (H5Lexists(f, "observables", H5P_DEFAULT) > 0) {
+        s.contacts = last("observables/contact_count/value");
+        s.patches = last("observables/patch_count/value");
+      }
+    }
+    if (H5Lexists(f, "connectors", H5P_DEFAULT) > 0 && H5Lexists(f, "connectors/lines_offset", H5P_DEFAULT) > 0) {
+      std::vector<hsize_t> shape;
+      openChecked(f, "connectors/particle_a", {H5T_INTEGER, 1, {}, "one particle index per connector, [C]"}, limit, shape);
+      s.connectors = static_cast<std::size_t>(shape[0]);
+      openChecked(f, "connectors/lines", {H5T_INTEGER, 2, {2}, "lines [N, 2]"}, limit, shape);
+      const hsize_t rows = shape[0];
+      s.connectorLineOffset =
+          readAll<std::int64_t>(f, "connectors/lines_offset", H5T_NATIVE_INT64, {H5T_INTEGER, 1, {}, "one row number per frame, [T]"}, limit);
+      frames("connectors/lines_offset", s.connectorLineOffset.size());
+      s.connectorLineOffset.resize(s.frames);
+      for (std::size_t i = 0; i < s.frames; ++i)
+        if (s.connectorLineOffset[i] < 0 || static_cast<hsize_t>(s.connectorLineOffset[i]) + s.connectors > rows)
+          throw ReadFailure{"/connectors/lines_offset[" + std::to_string(i) + "] is " + std::to_string(s.connectorLineOffset[i]) +
+                            "; expected a row of /connectors/lines (" + std::to_string(rows) + " rows) with " +
+                            std::to_string(s.connectors) + " rows from it"};
     }
     // what a trajectory must not hold: no frame, times that are not numbers or that go back
     if (s.frames == 0) throw ReadFailure{"the trajectory has no frames; expected at least the first (step 0)"};
@@ -444,6 +503,7 @@ Result<Checkpoint> H5mdReader::checkpoint() const {
   return cp;
 }
 
+
 // ---- reads for volpar render
 
 namespace {
@@ -564,6 +624,8 @@ Result<std::vector<std::int32_t>> H5mdReader::particleBodies(std::size_t frame, 
   }
 }
 
+bool H5mdReader::hasConnectors() const { return H5Lexists(impl_->file, "connectors", H5P_DEFAULT) > 0; }
+
 Result<ConnectorTable> H5mdReader::connectors(std::size_t particles) const {
   const hid_t f = impl_->file;
   const std::uint64_t limit = impl_->limit;
@@ -595,6 +657,15 @@ Result<ConnectorTable> H5mdReader::connectors(std::size_t particles) const {
         std::int64_t& s = t.breakStep[static_cast<std::size_t>(which[i])];
         s = std::min(s, step[i]);
       }
+    }
+    // connectors broken before the first frame (a resumed run's file)
+    if (H5Lexists(f, "connectors/broken_before", H5P_DEFAULT) > 0) {
+      const std::vector<std::int64_t> before = readIndices(f, "connectors/broken_before", 0, 1, "0 or 1 per connector [C]", limit);
+      if (before.size() != a.size())
+        throw ReadFailure{"/connectors/broken_before has " + std::to_string(before.size()) + " entries; expected " +
+                          std::to_string(a.size()) + ", one per connector"};
+      for (std::size_t i = 0; i < before.size(); ++i)
+        if (before[i] != 0) t.breakStep[i] = std::numeric_limits<std::int64_t>::min();
     }
   } catch (const ReadFailure& e) {
     return Error{impl_->path, 0, 0, e.what};

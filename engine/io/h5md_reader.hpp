@@ -19,7 +19,7 @@ struct TrajectorySummary {
   std::string sceneName;
   std::string sceneText;
   std::size_t frames = 0;       ///< complete frames
-  std::size_t tornFrames = 0;   ///< records of a frame cut short after them (a killed run, a full disk): ignored
+  std::size_t tornFrames = 0;   ///< frames written after the last commit (a killed run, a full disk): ignored
   std::size_t particles = 0;
   std::size_t bodies = 0;
   std::vector<std::int64_t> step;    ///< [T]
@@ -32,6 +32,14 @@ struct TrajectorySummary {
   std::vector<std::int64_t> patchOffset;
   std::vector<std::int64_t> patchCount;
   std::int64_t checkpointStep = -1;  ///< the step of the file's checkpoint (-1: none)
+  double dt = 0.0;                   ///< the time step [s] (/parameters@dt; 0 where the file has none)
+  std::size_t breakages = 0;         ///< connectors broken up to the last complete frame (/breakage)
+  std::size_t bodiesAlive = 0;       ///< bodies existing in the last complete frame
+  std::int64_t contacts = -1;        ///< touching contacts in the last complete frame (-1: not recorded)
+  std::int64_t patches = -1;         ///< contact patches in the last complete frame (-1: not recorded)
+  std::size_t connectors = 0;        ///< C, the length of /connectors/particle_a (0 where the file has none)
+  /// Per frame: the first of its C rows in /connectors/lines, [T] (empty where the file has no lines).
+  std::vector<std::int64_t> connectorLineOffset;
 };
 
 /// A trajectory's checkpoint (H5mdWriter::writeCheckpoint) and what it takes to build its world again.
@@ -45,18 +53,20 @@ struct Checkpoint {
   StateArchive state;              ///< World::saveState's arrays
 };
 
+/// Ragged rows of one frame of /contacts or /patches: points [m] and, for patches, unit normals.
+struct FrameRows {
+  std::vector<Vec3> point;   ///< [N] world frame
+  std::vector<Vec3> normal;  ///< [N] world frame (patches only)
+};
+
 /// The connectors of a trajectory (/connectors) and the step each broke at (/breakage), for `volpar render`.
 struct ConnectorTable {
   std::vector<std::int32_t> particleA;  ///< [C] particle index
   std::vector<std::int32_t> particleB;  ///< [C] particle index
   std::vector<std::int32_t> kind;       ///< [C] 0 rod, 1 spring, 2 bond
-  std::vector<std::int64_t> breakStep;  ///< [C] gone in frames with step >= breakStep (INT64_MAX: never broke)
-};
-
-/// Ragged rows of one frame of /contacts or /patches: points [m] and, for patches, unit normals.
-struct FrameRows {
-  std::vector<Vec3> point;   ///< [N] world frame
-  std::vector<Vec3> normal;  ///< [N] world frame (patches only)
+  /// [C] gone in frames with step >= breakStep (INT64_MAX: never broke; INT64_MIN: broken before the first
+  /// frame, /connectors/broken_before)
+  std::vector<std::int64_t> breakStep;
 };
 
 class H5mdReader {
@@ -83,6 +93,8 @@ class H5mdReader {
   [[nodiscard]] Result<std::vector<std::string>> bodyKinds() const;
   /// The body index of each particle in frame t, [P], each from 0 to `bodies` - 1.
   [[nodiscard]] Result<std::vector<std::int32_t>> particleBodies(std::size_t frame, std::size_t bodies) const;
+  /// Whether the file has /connectors (files of volpar 0.1 before it was written do not).
+  [[nodiscard]] bool hasConnectors() const;
   /// /connectors with their break steps from /breakage; an error where the file has no /connectors.
   [[nodiscard]] Result<ConnectorTable> connectors(std::size_t particles) const;
   /// The contact points of frame t (/contacts, ragged by offset and count).

@@ -5,6 +5,7 @@
 #include <sys/statvfs.h>
 
 #include <array>
+#include <chrono>
 #include <limits>
 #include <cstdlib>
 #include <filesystem>
@@ -144,6 +145,8 @@ template <>
 hid_t nativeType<std::int32_t>() { return H5T_NATIVE_INT32; }
 template <>
 hid_t nativeType<std::int64_t>() { return H5T_NATIVE_INT64; }
+template <>
+hid_t nativeType<std::int8_t>() { return H5T_NATIVE_INT8; }
 
 template <class T>
 hid_t fileType();
@@ -153,6 +156,8 @@ template <>
 hid_t fileType<std::int32_t>() { return H5T_STD_I32LE; }
 template <>
 hid_t fileType<std::int64_t>() { return H5T_STD_I64LE; }
+template <>
+hid_t fileType<std::int8_t>() { return H5T_STD_I8LE; }
 
 template <class T>
 void attrArray(hid_t obj, const std::string& name, const std::vector<T>& values) {
@@ -515,10 +520,13 @@ struct H5mdWriter::Impl {
   PatchSeries patches;
   BodyInfoSeries bodyInfo;
   BreakageSeries breakage;
+  Series connectorLines, connectorLinesOffset;
+  bool linesChanged = true;            // connectors broke since /connectors/lines was last written
+  std::int64_t linesOffset = 0;        // the first row of the last lines written
   std::size_t bodiesWritten = 0;       // rows in bodyInfo
   std::vector<std::uint8_t> retiredWritten;
   // scratch, reused
-  std::vector<std::int32_t> bodyIndex;
+  std::vector<std::int32_t> bodyIndex, lineRows;
   std::vector<double> bodyVec3, bodyQuat;
   std::vector<std::int32_t> contactA, contactB, contactPlane;
   std::vector<double> contactPoint, contactNormal, contactDepth;
@@ -661,6 +669,32 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     }
     // /breakage: every connector that broke (the engine's own group)
     impl->breakage = BreakageSeries(f);
+    // /connectors: every connector's particles and kind, for drawing them (the engine's own group); with
+    // /breakage they give the connectors standing in any frame
+    {
+      const ConnectorStore& c = world.connectors();
+      const hsize_t nc = c.size();
+      std::vector<std::int32_t> pa(nc), pb(nc), kind(nc);
+      std::vector<std::int8_t> broken(nc);
+      for (std::size_t i = 0; i < nc; ++i) {
+        pa[i] = static_cast<std::int32_t>(c.a[i].value);
+        pb[i] = static_cast<std::int32_t>(c.b[i].value);
+        kind[i] = c.kind[i] == ConnectorKind::Rod ? 0 : c.kind[i] == ConnectorKind::Spring ? 1 : 2;
+        broken[i] = static_cast<std::int8_t>(c.broken[i] ? 1 : 0);
+      }
+      Hid g = group(f, "connectors");
+      dataset(g.get(), "particle_a", {nc}, pa.data());
+      dataset(g.get(), "particle_b", {nc}, pb.data());
+      dataset(g.get(), "kind", {nc}, kind.data());
+      dataset(g.get(), "broken_before", {nc}, broken.data());
+      Hid k = checked(H5Dopen2(g.get(), "kind", H5P_DEFAULT), H5Dclose, "dataset kind");
+      attrString(k.get(), "meaning", "0: rod, 1: spring, 2: bond");
+      // the connectors of the frames, for drawing: C rows (particle_a, particle_b; a broken connector from
+      // particle_a to itself) written again only in frames after a break; lines_offset: the frame's first row
+      impl->connectorLines = Series(g.get(), "lines", H5T_STD_I32LE, {2});
+      impl->connectorLinesOffset = Series(g.get(), "lines_offset", H5T_STD_I64LE, {});
+      impl->lineRows.resize(2 * nc);
+    }
     // /observables
     {
       Hid obs = group(f, "observables");
@@ -758,7 +792,11 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     std::filesystem::remove(creating, ignored);
     return Error{path, 0, 0, "cannot write trajectory (" + e.what + ")"};
   }
-  return std::unique_ptr<H5mdWriter>(new H5mdWriter(std::move(impl), path, world.particles().size()));
+  auto writer = std::unique_ptr<H5mdWriter>(new H5mdWriter(std::move(impl), path, world.particles().size()));
+  // what the sidecar draws besides the particles
+  writer->connectors_ = world.connectors().size();
+  for (const Plane& pl : world.planes()) writer->planes_.push_back({pl.normal.x(), pl.normal.y(), pl.normal.z(), pl.offset});
+  return writer;
 }
 
 Status H5mdWriter::writeFrame(const World& world) {
@@ -769,12 +807,12 @@ Status H5mdWriter::writeFrame(const World& world) {
   const BodyStore& b = world.bodies();
   Impl& m = *impl_;
   // A write that fails part way can leave HDF5's record of the file's end past its real end, and such a file
-  // no longer opens: a frame is begun only with room on the disk for twice the largest frame so far, plus
-  // room to close the file.
+  // no longer opens: a frame is begun only with room on the disk for twice the most a commit has added so far
+  // (the frames a commit writes out may sit in HDF5's caches until then), plus room to close the file.
   hsize_t sizeBefore = 0;
   if (H5Fget_filesize(m.file.get(), &sizeBefore) < 0) return Error{path_, 0, 0, "cannot read the trajectory's size"};
   constexpr std::uint64_t kCloseRoom = std::uint64_t{1} << 20;
-  const std::uint64_t needed = 2 * largestFrame_ + kCloseRoom;
+  const std::uint64_t needed = 2 * largestCommit_ + kCloseRoom;
   if (const std::uint64_t room = roomToGrow(path_, sizeBefore); room < needed)
     return Error{path_, 0, 0, "not enough room: the disk or the file-size limit leaves " + std::to_string(room) +
                                   " more bytes and a frame may need " + std::to_string(needed) + "; stopped before frame " +
@@ -841,25 +879,63 @@ Status H5mdWriter::writeFrame(const World& world) {
     m.breakageEnergy.append(H5T_NATIVE_DOUBLE, &breakageEnergy, step, time);
     writeContacts(world.contacts());
     writePatches(world.patches());
-
-    // All or nothing: the frame's records reach the disk first, then the count that includes it, so a
-    // kill or a full disk at any point leaves a count of frames that are all complete (docs/hardening.md).
-    check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");
-    const auto complete = static_cast<std::int64_t>(times_.size() + 1);
-    check(H5Awrite(m.framesComplete.get(), H5T_NATIVE_INT64, &complete), "attribute frames_complete");
-    check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");
+    const ConnectorStore& c = world.connectors();
+    if (m.linesChanged && c.size() > 0) {
+      for (std::size_t i = 0; i < c.size(); ++i) {
+        m.lineRows[2 * i] = static_cast<std::int32_t>(c.a[i].value);
+        m.lineRows[2 * i + 1] = static_cast<std::int32_t>(c.broken[i] ? c.a[i].value : c.b[i].value);
+      }
+      m.linesOffset = static_cast<std::int64_t>(m.connectorLines.rows());
+      m.connectorLines.appendRows(H5T_NATIVE_INT32, m.lineRows.data(), c.size());
+    }
+    m.linesChanged = false;
+    m.connectorLinesOffset.append(H5T_NATIVE_INT64, &m.linesOffset);
   } catch (const H5Failure& e) {
     return Error{path_, 0, 0, "cannot write frame " + std::to_string(times_.size()) + " (" + e.what + "); the file holds " +
-                                  std::to_string(times_.size()) + " complete frames"};
+                                  std::to_string(committed_) + " complete frames"};
   }
-  hsize_t sizeAfter = 0;
-  if (H5Fget_filesize(m.file.get(), &sizeAfter) >= 0 && sizeAfter > sizeBefore)
-    largestFrame_ = std::max<std::uint64_t>(largestFrame_, sizeAfter - sizeBefore);
+  for (std::size_t i = 0; i < p.size(); ++i)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const double v = p.position[i][static_cast<Eigen::Index>(k)];
+      const bool first = times_.empty() && i == 0;
+      lo_[k] = first ? v : std::min(lo_[k], v);
+      hi_[k] = first ? v : std::max(hi_[k], v);
+    }
   times_.push_back(time);
   steps_.push_back(step);
   const auto patches = static_cast<std::int64_t>(world.patches().patches.size());
   patchOffsets_.push_back(static_cast<std::int64_t>(m.patches.bodyA.rows()) - patches);
   patchCounts_.push_back(patches);
+  linesOffsets_.push_back(m.linesOffset);
+  // (the first frame at once: a file that opens holds at least the state the run started from)
+  if (commitSeconds_ <= 0.0 || committed_ == 0 ||
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - lastCommit_).count() >= commitSeconds_)
+    return commit();
+  return okStatus();
+}
+
+Status H5mdWriter::commit() {
+  if (!impl_ || !impl_->file.valid()) return Error{path_, 0, 0, "trajectory is closed"};
+  Impl& m = *impl_;
+  lastCommit_ = std::chrono::steady_clock::now();
+  if (committed_ == times_.size()) return okStatus();
+  try {
+    // All or nothing: the frames' records reach the disk first, then the count that includes them, so a
+    // kill or a full disk at any point leaves a count of frames that are all complete (docs/hardening.md).
+    check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");
+    const auto complete = static_cast<std::int64_t>(times_.size());
+    check(H5Awrite(m.framesComplete.get(), H5T_NATIVE_INT64, &complete), "attribute frames_complete");
+    check(H5Fflush(m.file.get(), H5F_SCOPE_GLOBAL), "flush");
+  } catch (const H5Failure& e) {
+    return Error{path_, 0, 0, "cannot write frames " + std::to_string(committed_) + " to " + std::to_string(times_.size() - 1) +
+                                  " (" + e.what + "); the file holds " + std::to_string(committed_) + " complete frames"};
+  }
+  committed_ = times_.size();
+  hsize_t size = 0;
+  if (H5Fget_filesize(m.file.get(), &size) >= 0) {
+    if (size > sizeAtCommit_) largestCommit_ = std::max<std::uint64_t>(largestCommit_, size - sizeAtCommit_);
+    sizeAtCommit_ = size;
+  }
   return okStatus();
 }
 
@@ -973,6 +1049,7 @@ Status H5mdWriter::writeBreakEvents(const World& world) {
       s.mode.append(H5T_NATIVE_INT32, &mode);
       s.energy.append(H5T_NATIVE_DOUBLE, &e.energy);
     }
+    impl_->linesChanged = impl_->linesChanged || !world.breakEvents().empty();
   } catch (const H5Failure& e) {
     return Error{path_, 0, 0, "cannot write breakage events (" + e.what + ")"};
   }
@@ -1008,6 +1085,8 @@ Status H5mdWriter::writeCheckpoint(const World& world, std::int64_t endStep) {
   if (!impl_ || !impl_->file.valid()) return Error{path_, 0, 0, "trajectory is closed"};
   const std::int64_t step = world.stepIndex();
   if (step == checkpointStep_) return okStatus();
+  // the frames up to the checkpoint count before it does
+  if (auto ok = commit(); !ok) return ok;
   StateArchive archive;
   world.saveState(archive);
   const hid_t f = impl_->file.get();
@@ -1071,18 +1150,29 @@ Status H5mdWriter::writeCheckpoint(const World& world, std::int64_t endStep) {
 }
 
 Status H5mdWriter::writeSidecar(const std::string& h5Path) const {
+  // the complete frames only
+  const auto n = static_cast<std::ptrdiff_t>(committed_);
   XdmfFrames f;
   f.h5Path = h5Path;
   f.particles = particles_;
-  f.time = times_;
-  f.step = steps_;
-  f.patchOffset = patchOffsets_;
-  f.patchCount = patchCounts_;
+  f.time.assign(times_.begin(), times_.begin() + n);
+  f.step.assign(steps_.begin(), steps_.begin() + n);
+  f.patchOffset.assign(patchOffsets_.begin(), patchOffsets_.begin() + n);
+  f.patchCount.assign(patchCounts_.begin(), patchCounts_.begin() + n);
+  f.connectors = connectors_;
+  f.connectorOffset.assign(linesOffsets_.begin(), linesOffsets_.begin() + n);
+  f.planes = planes_;
+  f.lo = lo_;
+  f.hi = hi_;
   return writeXdmf(f);
 }
 
 Status H5mdWriter::close() {
   if (!impl_ || !impl_->file.valid()) return okStatus();
+  if (auto ok = commit(); !ok) {
+    impl_.reset();
+    return ok;
+  }
   const herr_t flushed = H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
   const hid_t file = impl_->file.release();
   impl_.reset();  // closes every dataset and attribute

@@ -4,8 +4,12 @@
 // /particles/all/position/value, and a temporal collection "patches" whose grids are the rows of
 // /patches of a frame (points, with normal, depth, case and validated). A frame without patches has no
 // patch grid (an empty HyperSlab is not valid XDMF): at its time the reader's "patches" block is empty.
+// A temporal collection "connectors" draws each frame's connectors as lines between their particles
+// (/connectors/lines, a broken one as a line of zero length), with their kind; a grid "planes" draws each
+// plane as a square around the particles' bounds.
 // Named `<trajectory>.xdmf2` so ParaView picks the right reader.
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -23,6 +27,13 @@ struct XdmfFrames {
   /// /patches (no "patches" collection is written then).
   std::vector<std::int64_t> patchOffset;
   std::vector<std::int64_t> patchCount;
+  /// Connectors (C) and, per frame, the first of its C rows in /connectors/lines, [T]; no "connectors"
+  /// collection where C is 0 or the offsets are not one per frame (a trajectory without /connectors/lines).
+  std::size_t connectors = 0;
+  std::vector<std::int64_t> connectorOffset;
+  /// The scene's planes: normal (3) and offset, drawn as squares around the particles' bounds (`lo`, `hi`).
+  std::vector<std::array<double, 4>> planes;
+  std::array<double, 3> lo{0.0, 0.0, 0.0}, hi{0.0, 0.0, 0.0};
 };
 
 /// `text` with & < > " and ' written as XML entities (for names inside attributes and elements).

@@ -31,7 +31,9 @@ def run(args, cwd, env_extra=None, preloaded=False):
     env = dict(os.environ, **(env_extra or {}))
     if preloaded:
         env["LD_PRELOAD"] = preload
-    return subprocess.run([volpar, "run"] + args, cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+    # (a flush after every frame: the same writes in every run, so that a kill before write k is the same point)
+    return subprocess.run([volpar, "run"] + args + ["--flush-every", "0"], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)
 
 
 def frames(path):

@@ -60,8 +60,8 @@ def variants():
             h["parameters"].attrs["frames_complete"] = np.int64(n)
         return f
 
-    v.append(("step shorter than time", "particles/all/position/time",
-              lambda h: (shorter("particles/all/position/step", 2)(h), complete(2)(h))))
+    v.append(("step shorter than the complete frames", "parameters@frames_complete",
+              lambda h: (shorter("particles/all/position/step", 2)(h), complete(3)(h))))
     v.append(("time shorter than step", "particles/all/position/time", shorter("particles/all/position/time", 1)))
     v.append(("kinetic energy shorter", "observables/kinetic_energy/value",
               shorter("observables/kinetic_energy/value", 1)))
@@ -76,8 +76,6 @@ def variants():
               attr("parameters", "frames_complete", "3")))
     v.append(("complete frames as an array", "parameters@frames_complete",
               attr("parameters", "frames_complete", np.array([1, 2], dtype=np.int64))))
-    v.append(("two frames past the complete ones", "parameters@frames_complete",
-              lambda h: complete(h["particles/all/position/step"].shape[0] - 2)(h)))
 
     def nan_time(h):
         t = h["particles/all/position/time"]
@@ -181,6 +179,15 @@ def main():
     r = subprocess.run([volpar, "inspect", "--json", torn], capture_output=True, text=True, timeout=60)
     if r.returncode != 0 or '"frames": %d' % (frames - 1) not in r.stdout or '"torn_frames": 1' not in r.stdout:
         failures.append("a file with one frame cut short: exit %d\n%s" % (r.returncode, r.stdout + r.stderr))
+    # several frames written after the last flush (output is flushed every few seconds): left out, not refused
+    unflushed = os.path.join(work, "unflushed.h5")
+    shutil.copyfile(good, unflushed)
+    with h5py.File(unflushed, "r+") as h:
+        frames = h["particles/all/position/step"].shape[0]
+        h["parameters"].attrs["frames_complete"] = np.int64(frames - 3)
+    r = subprocess.run([volpar, "inspect", "--json", unflushed], capture_output=True, text=True, timeout=60)
+    if r.returncode != 0 or '"frames": %d' % (frames - 3) not in r.stdout or '"torn_frames": 3' not in r.stdout:
+        failures.append("a file with three frames after its last flush: exit %d\n%s" % (r.returncode, r.stdout + r.stderr))
     # cut short earlier: the positions already hold the frame, its step number and energies not yet
     early = os.path.join(work, "torn_early.h5")
     shutil.copyfile(good, early)

@@ -253,13 +253,31 @@ def validate(path, scene=None, frames=None):
     expect(len(par.attrs["engine_version"]) > 0, "missing engine version")
     planes = par["planes"][()]
     expect(planes.ndim == 2 and planes.shape[1] == 4, "planes must be [n, 4]")
+    C, line_offset = check_connectors(f, T, P, step)
 
     # the XDMF sidecar, if present: the particles of every frame, the patches of every frame that has some
     side = os.path.splitext(path)[0] + ".xdmf2"
     if os.path.exists(side):
         domain = ET.parse(side).getroot().find("Domain")
         collections = {g.get("Name"): g for g in domain.findall("Grid")}
-        expect(set(collections) == {"particles", "patches"}, f"sidecar collections {sorted(collections)}")
+        want = {"particles", "patches"} | ({"connectors"} if C > 0 else set()) | ({"planes"} if len(planes) else set())
+        expect(set(collections) == want, f"sidecar collections {sorted(collections)}, expected {sorted(want)}")
+        if C > 0:
+            grids = collections["connectors"].findall("Grid")
+            expect(len(grids) == T, f"sidecar has {len(grids)} connector frames, file has {T}")
+            for i, grid in enumerate(grids):
+                expect(grid.find("Topology").get("NumberOfElements") == str(C), f"sidecar connector count of frame {i}")
+                start, data = grid.find("Topology/DataItem").findall("DataItem")
+                expect(data.text.strip().endswith(":/connectors/lines"), f"sidecar connector lines of frame {i}")
+                expect(start.text.split() == [str(line_offset[i]), "0", "1", "1", str(C), "2"],
+                       f"sidecar connector hyperslab of frame {i}")
+        if len(planes):
+            quad = collections["planes"]
+            corners = np.array(quad.find("Geometry/DataItem").text.split(), dtype=float).reshape(-1, 4, 3)
+            expect(corners.shape[0] == len(planes), "sidecar planes: one square per plane")
+            for k, (n, off) in enumerate(zip(planes[:, :3], planes[:, 3])):
+                expect(np.abs(corners[k] @ n - off).max() < 1e-9 * np.linalg.norm(n) * max(1.0, np.abs(corners[k]).max()),
+                       f"sidecar plane {k}: corners off the plane")
         grids = collections["particles"].findall("Grid")
         expect(len(grids) == T, f"sidecar has {len(grids)} frames, file has {T}")
         for i, grid in enumerate(grids):
@@ -287,6 +305,37 @@ def validate(path, scene=None, frames=None):
                        f"sidecar patch hyperslab of frame {i}")
     f.close()
     return T, P, B
+
+
+def check_connectors(f, T, P, step):
+    """/connectors: every connector's particles and kind; /connectors/lines holds each frame's connectors
+    with the broken ones (by /breakage, or before the first frame) drawn from particle_a to itself.
+    Returns C and the per-frame offsets into /connectors/lines."""
+    expect("connectors" in f, "missing /connectors")
+    c = f["connectors"]
+    a, b, kind, before = (c[n][()] for n in ("particle_a", "particle_b", "kind", "broken_before"))
+    C = a.shape[0]
+    expect(a.shape == b.shape == kind.shape == before.shape == (C,), "connector arrays of different lengths")
+    expect(C == 0 or (a.min() >= 0 and b.min() >= 0 and a.max() < P and b.max() < P), "connector particle out of range")
+    expect(set(np.unique(kind)) <= {0, 1, 2}, "connector kind not 0, 1 or 2")
+    offset = c["lines_offset"][()]
+    lines = c["lines"][()]
+    expect(offset.shape == (T,), f"/connectors/lines_offset has shape {offset.shape}, expected ({T},)")
+    broke = np.full(C, np.iinfo(np.int64).max)
+    if "breakage" in f and f["breakage/connector"].shape[0]:
+        which, when = f["breakage/connector"][()], f["breakage/step"][()]
+        expect(np.all((which >= 0) & (which < C)), "/breakage/connector out of range")
+        np.minimum.at(broke, which, when)
+    broke[before != 0] = np.iinfo(np.int64).min
+    for i in range(T):
+        if C == 0:
+            break
+        rows = lines[offset[i]:offset[i] + C]
+        expect(rows.shape == (C, 2), f"/connectors/lines of frame {i} holds {rows.shape[0]} rows, expected {C}")
+        standing = broke > step[i]
+        expect(np.array_equal(rows[:, 0], a) and np.array_equal(rows[:, 1], np.where(standing, b, a)),
+               f"/connectors/lines of frame {i} (step {step[i]}) is not its standing connectors")
+    return C, offset
 
 
 def check_patches(f, step, exists, kinds, particle_body, planes):
