@@ -1,5 +1,5 @@
 #pragma once
-// The World owns every store and runs the step pipeline of DESIGN section 1. Collision detection runs at
+// The World owns every store and runs the step pipeline (docs/architecture.md, The step). Collision detection runs at
 // the end of a step, on the positions the step produced, so that contacts() always describes the current
 // state (what a trajectory frame or a cross-check sees) and the next step's solver uses it:
 //   1. integrate velocities (gravity)

@@ -1,4 +1,4 @@
-// The World's breakage stage (DESIGN section 6): connectors that break under the step's loads, rigid bodies
+// The World's breakage stage (docs/fracture.md, docs/architecture.md): connectors that break under the step's loads, rigid bodies
 // that split into the connected pieces of what is left, glued bodies, and the normals around what changed.
 
 #include <algorithm>

@@ -29,7 +29,7 @@ py::dict summaryDict(const World& world, const std::string& sceneName, const Run
   d["simulated_seconds"] = world.time();
   d["energy_start"] = s.energyStart.total();
   d["energy_end"] = s.energyEnd.total();
-  d["energy_drift"] = s.energyEnd.total() - s.energyStart.total();
+  d["energy_change"] = s.energyEnd.total() - s.energyStart.total();
   d["contacts"] = world.stats().contacts;
   d["connectors_broken"] = s.connectorsBroken;
   d["bodies_created"] = s.bodiesCreated;
@@ -175,13 +175,14 @@ Keyword arguments (each as the volpar run option of the same name):
         Neither: the scene's (a world built from code needs one).
     every (int): write a frame every this many steps (--every), besides step 0 and the last; None: the
         scene's `output: every` (1 for a world built from code).
-    threads (int): worker threads (--threads), 1 to 256; None: a Scene's 1, a World's own setting.
+    threads (int): worker threads (--threads), 1 to 256; None: for a Scene or path the machine's hardware threads,
+        for a World its own setting.
     checkpoint_every (int): write a checkpoint (the whole state) into the trajectory every this many steps, at
         the end and when interrupted (--checkpoint-every; `volpar run --resume FILE` continues from it).
     seed (int), memory_limit_gib (float): --seed and --memory-limit, for a Scene or path only.
 
 Returns a dict with the keys of `volpar run --json` ('steps', 'frames', 'bodies', 'particles',
-'wall_seconds', 'step_seconds', 'steps_per_second', 'threads', 'energy_start', 'energy_end', 'output', ...,
+'wall_seconds', 'step_seconds', 'steps_per_second', 'threads', 'energy_start', 'energy_end', 'energy_change', 'output', ...,
 'patches_by_case', 'stage_seconds'). The run releases the GIL. Raises volpar.Error with volpar run's message
 for bad input or a failed run (the frames written stay in OUTPUT.partial.h5); Ctrl-C stops the run after
 the current step, closes the file (it keeps its partial name) and raises KeyboardInterrupt.

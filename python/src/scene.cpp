@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "python/src/common.hpp"
+#include "volpar/engine/run_loop.hpp"
 #include "volpar/engine/scene/scene_build.hpp"
 #include "volpar/engine/scene/scene_loader.hpp"
 
@@ -59,7 +60,7 @@ py::tuple tuple3(const Vec3& v) { return py::make_tuple(v.x(), v.y(), v.z()); }
 }  // namespace
 
 int threadCount(py::handle threads) {
-  if (threads.is_none()) return 1;
+  if (threads.is_none()) return defaultThreads();
   return static_cast<int>(wholeNumber(threads, "--threads", 1, 256));
 }
 
@@ -168,7 +169,7 @@ Keyword arguments (each as the `volpar run` option of the same name; None: the o
     seed (int | None): overrides the scene's `seed` (--seed), 0 to 2**53.
     memory_limit_gib (float | None): refuse a scene estimated to need more memory [GiB] (--memory-limit);
         None: 80 % of this machine's memory.
-    threads (int | None): worker threads for the steps, 1 to 256 (--threads; None: 1). The results do not
+    threads (int | None): worker threads for the steps, 1 to 256 (--threads; None: the machine's hardware threads). The results do not
         depend on it.
 
 Raises volpar.Error where the scene cannot be built (bodies overlapping at the start, a mesh that is not a
