@@ -26,6 +26,8 @@ install(TARGETS volpar_core volpar_collision volpar_dynamics volpar_engine volpa
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(TARGETS volpar RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# the plots of a trajectory (matplotlib): volpar-plot TRAJ.h5
+install(PROGRAMS ${PROJECT_SOURCE_DIR}/tools/scripts/volpar_plot.py DESTINATION ${CMAKE_INSTALL_BINDIR} RENAME volpar-plot)
 foreach(module engine collision dynamics)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${module}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/volpar/${module}
           FILES_MATCHING PATTERN "*.hpp" PATTERN "reference" EXCLUDE)

@@ -16,7 +16,7 @@ endfunction()
 
 step(${CMAKE_COMMAND} --install ${BUILD} --prefix ${WORK}/prefix)
 foreach(expected lib/cmake/volpar/volparConfig.cmake lib/cmake/volpar/volparConfigVersion.cmake
-                 include/volpar/engine/world.hpp include/volpar/engine/core/version.hpp bin/volpar)
+                 include/volpar/engine/world.hpp include/volpar/engine/core/version.hpp bin/volpar bin/volpar-plot)
   if(NOT EXISTS ${WORK}/prefix/${expected})
     message(FATAL_ERROR "the install has no ${expected}")
   endif()
@@ -27,3 +27,9 @@ step(${CMAKE_COMMAND} -S ${SOURCE}/tools/examples/embed -B ${WORK}/build -G ${GE
      -DCMAKE_BUILD_TYPE=Release)
 step(${CMAKE_COMMAND} --build ${WORK}/build)
 step(${WORK}/build/embed)
+# the installed programs run from the prefix: a run, and its plots
+step(${WORK}/prefix/bin/volpar run ${SOURCE}/scenes/examples/bounce.yaml --steps 60 -o ${WORK}/bounce.h5)
+step(${WORK}/prefix/bin/volpar-plot ${WORK}/bounce.h5 -o ${WORK}/plots)
+if(NOT EXISTS ${WORK}/plots/energy.png)
+  message(FATAL_ERROR "the installed volpar-plot wrote no ${WORK}/plots/energy.png")
+endif()
