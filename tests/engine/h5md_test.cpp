@@ -464,6 +464,27 @@ TEST(H5md, KilledRunKeepsEveryFrameWrittenBeforeTheKill) {
   }
 }
 
+TEST(H5md, KilledRunLosesOnlyTheFramesAfterItsLastFlush) {
+  // frames are flushed and counted every --flush-every seconds, and the first at once
+  const std::string dir = test::tempDir();
+  const std::string scene = writeLongScene(dir);
+  const auto completeFrames = [&](const std::string& flushEvery) {
+    const std::string out = dir + "/flush" + flushEvery + ".h5";
+    const int status = runAndSignal(scene, out, {"--flush-every", flushEvery}, SIGKILL, 1500);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+    auto reader = H5mdReader::open(partialPath(out));
+    EXPECT_TRUE(reader.ok());
+    if (!reader.ok()) return std::size_t{0};
+    auto s = (*reader)->summary();
+    EXPECT_TRUE(s.ok());
+    return s.ok() ? s->frames : std::size_t{0};
+  };
+  // a long interval: the kill comes before the second flush, and only the first frame counts
+  EXPECT_EQ(completeFrames("1000"), 1u);
+  // a short one: flushes during the run
+  EXPECT_GE(completeFrames("0.2"), 2u);
+}
+
 TEST(H5md, TerminatedRunClosesTheFileCleanly) {
   const std::string dir = test::tempDir();
   const std::string out = dir + "/terminated.h5";
