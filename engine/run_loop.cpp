@@ -102,6 +102,7 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
 
   const auto start = Clock::now();
   auto lastProgress = start;
+  if (options.progress) options.progress(0, options.steps);
   auto lastSidecar = start;
   const int every = std::max(1, options.every);
   std::int64_t lastWritten = world.stepIndex();

@@ -42,7 +42,8 @@ struct RunOptions {
   std::string output;          ///< trajectory path; empty = no file
   std::int64_t steps = 0;      ///< steps to take
   int every = 1;               ///< write a frame every `every` steps
-  /// Called now and then with (steps done, steps total); may be empty.
+  /// Called with (0, steps total) before the first step, now and then with (steps done, steps total) and
+  /// once after the last; may be empty.
   std::function<void(std::int64_t, std::int64_t)> progress;
   /// When set and it becomes true, the run stops after the current step and closes the file cleanly.
   const std::atomic<bool>* stop = nullptr;

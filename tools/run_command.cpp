@@ -38,11 +38,9 @@ std::string clockText(double seconds) {
 /// The progress bar on a terminal: share done, steps, rate, time elapsed and the time left at that rate.
 void progressBar(std::int64_t done, std::int64_t total) {
   using Clock = std::chrono::steady_clock;
-  static const Clock::time_point start = Clock::now();
-  static std::int64_t first = -1;  // the steps done at the first call (a resumed run starts past 0)
-  if (first < 0) first = done;
+  static const Clock::time_point start = Clock::now();  // (the runner's first call, at 0 steps done)
   const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
-  const double rate = elapsed > 0.0 ? static_cast<double>(done - first) / elapsed : 0.0;
+  const double rate = elapsed > 0.0 ? static_cast<double>(done) / elapsed : 0.0;
   const int width = 30;
   const double f = total > 0 ? static_cast<double>(done) / static_cast<double>(total) : 1.0;
   const int filled = static_cast<int>(f * width);
