@@ -102,8 +102,8 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
 
   const auto start = Clock::now();
   auto lastProgress = start;
-  if (options.progress) options.progress(0, options.steps);
   auto lastSidecar = start;
+  if (options.progress) options.progress(0, options.steps);
   const int every = std::max(1, options.every);
   std::int64_t lastWritten = world.stepIndex();
   const std::int64_t endStep = world.stepIndex() + options.steps;

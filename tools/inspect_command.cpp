@@ -149,14 +149,7 @@ int xdmf(const std::string& path) {
   for (const std::size_t frame : {std::size_t{0}, sum->frames - 1}) {
     auto x = (*reader)->positions(frame);
     if (!x) return fail(x.error());
-    for (std::size_t i = 0; i < x->size(); ++i)
-      for (std::size_t k = 0; k < 3; ++k) {
-        const double v = (*x)[i][static_cast<Eigen::Index>(k)];
-        if (!std::isfinite(v)) continue;
-        const bool first = frame == 0 && i == 0;
-        f.lo[k] = first ? v : std::min(f.lo[k], v);
-        f.hi[k] = first ? v : std::max(f.hi[k], v);
-      }
+    f.bounds.add(*x);
   }
   if (auto ok = writeXdmf(f); !ok) return fail(ok.error());
   std::printf("%s\n", sidecarPath(path).c_str());

@@ -188,37 +188,38 @@ std::vector<std::string> readStrings(hid_t file, const std::string& name, bool s
   return out;
 }
 
-/// An optional whole-number attribute (a scalar); nullopt when the object or the attribute is absent.
-std::optional<std::int64_t> readCountAttr(hid_t file, const std::string& object, const std::string& name) {
+/// An optional attribute holding one value (a scalar, or an array of one) of class H5T_INTEGER, or with
+/// `floatToo` also H5T_FLOAT, read as `memType` into `out`; false when the object or the attribute is absent.
+/// `notOne`: the message's end where it holds anything else.
+bool readOneValueAttr(hid_t file, const std::string& object, const std::string& name, bool floatToo, hid_t memType,
+                      void* out, const char* notOne) {
   const std::string where = "/" + object + "@" + name;
   if (H5Lexists(file, object.c_str(), H5P_DEFAULT) <= 0 || H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) <= 0)
-    return std::nullopt;
-  Handle attr(H5Aopen_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
-              "cannot open attribute " + where);
-  Handle type(H5Aget_type(attr.get()), H5Tclose, "attribute type");
-  Handle space(H5Aget_space(attr.get()), H5Sclose, "attribute dataspace");
-  if (H5Tget_class(type.get()) != H5T_INTEGER || H5Sget_simple_extent_npoints(space.get()) != 1)
-    throw ReadFailure{where + " is not one whole number; expected the count of complete frames"};
-  std::int64_t v = 0;
-  if (H5Aread(attr.get(), H5T_NATIVE_INT64, &v) < 0) throw ReadFailure{"cannot read " + where};
-  return v;
-}
-
-/// An optional number attribute (one value); nullopt when the object or the attribute is absent.
-std::optional<double> readNumberAttr(hid_t file, const std::string& object, const std::string& name) {
-  const std::string where = "/" + object + "@" + name;
-  if (H5Lexists(file, object.c_str(), H5P_DEFAULT) <= 0 || H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) <= 0)
-    return std::nullopt;
+    return false;
   Handle attr(H5Aopen_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
               "cannot open attribute " + where);
   Handle type(H5Aget_type(attr.get()), H5Tclose, "attribute type");
   Handle space(H5Aget_space(attr.get()), H5Sclose, "attribute dataspace");
   const H5T_class_t c = H5Tget_class(type.get());
-  if ((c != H5T_INTEGER && c != H5T_FLOAT) || H5Sget_simple_extent_npoints(space.get()) != 1)
-    throw ReadFailure{where + " is not one number"};
+  if ((c != H5T_INTEGER && !(floatToo && c == H5T_FLOAT)) || H5Sget_simple_extent_npoints(space.get()) != 1)
+    throw ReadFailure{where + notOne};
+  if (H5Aread(attr.get(), memType, out) < 0) throw ReadFailure{"cannot read " + where};
+  return true;
+}
+
+/// An optional whole-number attribute (a scalar); nullopt when the object or the attribute is absent.
+std::optional<std::int64_t> readCountAttr(hid_t file, const std::string& object, const std::string& name) {
+  std::int64_t v = 0;
+  if (!readOneValueAttr(file, object, name, false, H5T_NATIVE_INT64, &v, " is not one whole number; expected the count of complete frames"))
+    return std::nullopt;
+  return v;
+}
+
+/// An optional number attribute (one finite value); nullopt when the object or the attribute is absent.
+std::optional<double> readNumberAttr(hid_t file, const std::string& object, const std::string& name) {
   double v = 0.0;
-  if (H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &v) < 0) throw ReadFailure{"cannot read " + where};
-  if (!std::isfinite(v)) throw ReadFailure{where + " is not a finite number"};
+  if (!readOneValueAttr(file, object, name, true, H5T_NATIVE_DOUBLE, &v, " is not one number")) return std::nullopt;
+  if (!std::isfinite(v)) throw ReadFailure{"/" + object + "@" + name + " is not a finite number"};
   return v;
 }
 

@@ -484,6 +484,9 @@ struct BodyInfoSeries {
   }
 };
 
+/// A connector's kind as the trajectory stores it: 0 rod, 1 spring, 2 bond.
+std::int32_t kindCode(ConnectorKind k) { return k == ConnectorKind::Rod ? 0 : k == ConnectorKind::Spring ? 1 : 2; }
+
 /// The connectors that broke, one row per event.
 struct BreakageSeries {
   Hid group;
@@ -679,7 +682,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       for (std::size_t i = 0; i < nc; ++i) {
         pa[i] = static_cast<std::int32_t>(c.a[i].value);
         pb[i] = static_cast<std::int32_t>(c.b[i].value);
-        kind[i] = c.kind[i] == ConnectorKind::Rod ? 0 : c.kind[i] == ConnectorKind::Spring ? 1 : 2;
+        kind[i] = kindCode(c.kind[i]);
         broken[i] = static_cast<std::int8_t>(c.broken[i] ? 1 : 0);
       }
       Hid g = group(f, "connectors");
@@ -894,13 +897,7 @@ Status H5mdWriter::writeFrame(const World& world) {
     return Error{path_, 0, 0, "cannot write frame " + std::to_string(times_.size()) + " (" + e.what + "); the file holds " +
                                   std::to_string(committed_) + " complete frames"};
   }
-  for (std::size_t i = 0; i < p.size(); ++i)
-    for (std::size_t k = 0; k < 3; ++k) {
-      const double v = p.position[i][static_cast<Eigen::Index>(k)];
-      const bool first = times_.empty() && i == 0;
-      lo_[k] = first ? v : std::min(lo_[k], v);
-      hi_[k] = first ? v : std::max(hi_[k], v);
-    }
+  bounds_.add(p.position);
   times_.push_back(time);
   steps_.push_back(step);
   const auto patches = static_cast<std::int64_t>(world.patches().patches.size());
@@ -1036,7 +1033,7 @@ Status H5mdWriter::writeBreakEvents(const World& world) {
       const double t = static_cast<double>(e.step) * world.settings().dt;
       const auto i32 = [](std::uint32_t v) { return static_cast<std::int32_t>(v); };
       const std::int32_t c = i32(e.connector.value), a = i32(e.a.value), bb = i32(e.b.value), body = i32(e.body.value),
-                         kind = e.kind == ConnectorKind::Rod ? 0 : e.kind == ConnectorKind::Spring ? 1 : 2,
+                         kind = kindCode(e.kind),
                          mode = static_cast<std::int32_t>(e.mode);
       s.step.append(H5T_NATIVE_INT64, &e.step);
       s.time.append(H5T_NATIVE_DOUBLE, &t);
@@ -1162,8 +1159,7 @@ Status H5mdWriter::writeSidecar(const std::string& h5Path) const {
   f.connectors = connectors_;
   f.connectorOffset.assign(linesOffsets_.begin(), linesOffsets_.begin() + n);
   f.planes = planes_;
-  f.lo = lo_;
-  f.hi = hi_;
+  f.bounds = bounds_;
   return writeXdmf(f);
 }
 

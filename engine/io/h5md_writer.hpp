@@ -86,7 +86,7 @@ class H5mdWriter {
   std::size_t connectors_ = 0;        ///< for the sidecar: connectors, and per frame the first row of its lines
   std::vector<std::int64_t> linesOffsets_;
   std::vector<std::array<double, 4>> planes_;
-  std::array<double, 3> lo_{}, hi_{};  ///< the particles' bounds over the frames written
+  XdmfBounds bounds_;                 ///< the particles' bounds over the frames written
   std::vector<double> times_;
   std::vector<std::int64_t> steps_;
   std::vector<std::int64_t> patchOffsets_;  // per frame: its first row in /patches

@@ -102,10 +102,9 @@ void writePlaneGrid(std::ostream& x, const XdmfFrames& f) {
   const std::size_t n = f.planes.size();
   if (n == 0) return;
   double centre[3], diagonal2 = 0.0;
-  for (int k = 0; k < 3; ++k) {
-    centre[k] = 0.5 * (f.lo[static_cast<std::size_t>(k)] + f.hi[static_cast<std::size_t>(k)]);
-    const double d = f.hi[static_cast<std::size_t>(k)] - f.lo[static_cast<std::size_t>(k)];
-    diagonal2 += d * d;
+  for (std::size_t k = 0; k < 3; ++k) {
+    centre[k] = 0.5 * (f.bounds.lo[k] + f.bounds.hi[k]);
+    diagonal2 += (f.bounds.hi[k] - f.bounds.lo[k]) * (f.bounds.hi[k] - f.bounds.lo[k]);
   }
   const double half = std::max(0.5, std::sqrt(diagonal2));
   x << " <Grid Name=\"planes\" GridType=\"Uniform\">\n"
@@ -142,6 +141,18 @@ void writePlaneGrid(std::ostream& x, const XdmfFrames& f) {
 }
 
 }  // namespace
+
+void XdmfBounds::add(const std::vector<Vec3>& x) {
+  for (const Vec3& p : x) {
+    if (!p.allFinite()) continue;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const double v = p[static_cast<Eigen::Index>(k)];
+      lo[k] = empty ? v : std::min(lo[k], v);
+      hi[k] = empty ? v : std::max(hi[k], v);
+    }
+    empty = false;
+  }
+}
 
 std::string xmlEscaped(const std::string& text) {
   std::string out;

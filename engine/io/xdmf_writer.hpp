@@ -15,8 +15,17 @@
 #include <vector>
 
 #include "volpar/engine/core/status.hpp"
+#include "volpar/engine/core/types.hpp"
 
 namespace volpar {
+
+/// The box around the particles of the frames drawn (the planes are drawn as squares around it).
+struct XdmfBounds {
+  std::array<double, 3> lo{0.0, 0.0, 0.0}, hi{0.0, 0.0, 0.0};
+  bool empty = true;
+  /// Grows the box to take in `x`'s finite points.
+  void add(const std::vector<Vec3>& x);
+};
 
 struct XdmfFrames {
   std::string h5Path;                 ///< the trajectory
@@ -31,9 +40,9 @@ struct XdmfFrames {
   /// collection where C is 0 or the offsets are not one per frame (a trajectory without /connectors/lines).
   std::size_t connectors = 0;
   std::vector<std::int64_t> connectorOffset;
-  /// The scene's planes: normal (3) and offset, drawn as squares around the particles' bounds (`lo`, `hi`).
+  /// The scene's planes: normal (3) and offset, drawn as squares around the particles' bounds.
   std::vector<std::array<double, 4>> planes;
-  std::array<double, 3> lo{0.0, 0.0, 0.0}, hi{0.0, 0.0, 0.0};
+  XdmfBounds bounds;
 };
 
 /// `text` with & < > " and ' written as XML entities (for names inside attributes and elements).

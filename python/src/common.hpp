@@ -170,5 +170,9 @@ struct PyScene {
                                                   py::handle threads);
 /// Threads for World::setThreads, checked as volpar run's --threads.
 [[nodiscard]] int threadCount(py::handle threads);
+/// Patches by case as a dict {case name: count} (volpar run --json's patches_by_case).
+[[nodiscard]] py::dict patchesByCaseDict(const std::array<std::size_t, kPlaneCaseCount>& byCase);
+/// The step's stages as a dict {stage: seconds} (volpar run --json's stage_seconds, without the total).
+[[nodiscard]] py::dict stageSecondsDict(const StageTimes& t);
 
 }  // namespace volpar::python

@@ -11,6 +11,24 @@
 
 namespace volpar::python {
 
+py::dict patchesByCaseDict(const std::array<std::size_t, kPlaneCaseCount>& byCase) {
+  py::dict d;
+  for (std::size_t k = 0; k < kPlaneCaseCount; ++k) d[planeCaseName(static_cast<PlaneCase>(k))] = byCase[k];
+  return d;
+}
+
+py::dict stageSecondsDict(const StageTimes& t) {
+  py::dict d;
+  d["integrate_velocities"] = t.integrateVelocities;
+  d["integrate_positions"] = t.integratePositions;
+  d["broadphase"] = t.broadphase;
+  d["particle_contacts"] = t.particleContacts;
+  d["narrow_phase"] = t.narrowPhase;
+  d["solver"] = t.solver;
+  d["breakage"] = t.breakage;
+  return d;
+}
+
 namespace {
 
 /// The summary, with the keys and in the order of `volpar run --json` (tools/run_command.cpp).
@@ -50,18 +68,8 @@ py::dict summaryDict(const World& world, const std::string& sceneName, const Run
   d["look_aheads"] = s.lookAheads;
   d["patches_reused"] = s.patchesReused;
   d["candidates"] = s.candidates;
-  py::dict byCase;
-  for (std::size_t k = 0; k < kPlaneCaseCount; ++k) byCase[planeCaseName(static_cast<PlaneCase>(k))] = s.patchesByCase[k];
-  d["patches_by_case"] = byCase;
-  py::dict stages;
-  stages["integrate_velocities"] = t.integrateVelocities;
-  stages["integrate_positions"] = t.integratePositions;
-  stages["broadphase"] = t.broadphase;
-  stages["particle_contacts"] = t.particleContacts;
-  stages["narrow_phase"] = t.narrowPhase;
-  stages["solver"] = t.solver;
-  stages["breakage"] = t.breakage;
-  d["stage_seconds"] = stages;
+  d["patches_by_case"] = patchesByCaseDict(s.patchesByCase);
+  d["stage_seconds"] = stageSecondsDict(t);
   return d;
 }
 

@@ -334,9 +334,7 @@ py::dict stats(PyWorld& self) {
   d["body_pairs"] = s.bodyPairs;
   d["plane_pairs"] = s.planePairs;
   d["patches"] = s.patches;
-  py::dict byCase;
-  for (std::size_t k = 0; k < kPlaneCaseCount; ++k) byCase[planeCaseName(static_cast<PlaneCase>(k))] = s.patchesByCase[k];
-  d["patches_by_case"] = byCase;
+  d["patches_by_case"] = patchesByCaseDict(s.patchesByCase);
   d["unvalidated_patches"] = s.unvalidatedPatches;
   d["look_aheads"] = s.lookAheads;
   d["candidates"] = s.candidates;
@@ -345,14 +343,7 @@ py::dict stats(PyWorld& self) {
   d["connectors_broken"] = s.connectorsBroken;
   d["bodies_created"] = s.bodiesCreated;
   d["normals_recomputed"] = s.normalsRecomputed;
-  py::dict t;
-  t["integrate_velocities"] = s.time.integrateVelocities;
-  t["integrate_positions"] = s.time.integratePositions;
-  t["broadphase"] = s.time.broadphase;
-  t["particle_contacts"] = s.time.particleContacts;
-  t["narrow_phase"] = s.time.narrowPhase;
-  t["solver"] = s.time.solver;
-  t["breakage"] = s.time.breakage;
+  py::dict t = stageSecondsDict(s.time);
   t["total"] = s.time.total;
   d["stage_seconds"] = t;
   return d;

@@ -42,6 +42,7 @@
 #include "volpar/engine/builders/fill.hpp"
 #include "volpar/engine/builders/shapes.hpp"
 #include "volpar/engine/world.hpp"
+#include "tools/bench/quick_flag.hpp"
 
 namespace {
 
@@ -627,19 +628,7 @@ void runChecks() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // --quick is ours; the rest goes to Google Benchmark (whose --help lists its own options and exits)
-  int kept = 1;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--quick") {
-      gQuick = true;
-    } else {
-      if (arg == "--help") std::printf("collision_bench [--quick] [Google Benchmark options]\n"
-                                       "  --quick: the checks, then every benchmark once (one iteration)\n\n");
-      argv[kept++] = argv[i];
-    }
-  }
-  argc = kept;
+  gQuick = volpar::bench::takeQuickFlag(argc, argv, "collision_bench");
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   runChecks();
