@@ -1,5 +1,6 @@
-// pile_bench: the canonical pile-N scene stepped by volpar and by Bullet (Debian's libbullet 3.24, its
-// Bullet 2 rigid-body API) in the same run, interleaved, with the quality of the end state next to the speed.
+// pile_bench: the canonical pile-N scene stepped by volpar, by Bullet (Debian's libbullet 3.24, its Bullet 2
+// rigid-body API) and, when built with it, by Jolt Physics (5.5.0 from source) in the same run, interleaved, with
+// the quality of the end state next to the speed.
 //
 // pile-N (scenes/bench/pile-1000.yaml is pile-1000):
 //   - N rigid bodies, each a 3 x 3 x 3 cubic lattice of spheres: radius 0.05 m, centre spacing 0.1 m, 0.1 kg
@@ -11,6 +12,7 @@
 //   - a ground plane z = 0 and four walls x, y = +-(0.45 k / 2 + 0.3) m, normals inward
 //   - gravity (0, 0, -9.81) m/s^2, dt = 1/240 s, 10 solver iterations, restitution 0.1 and friction 0.5
 //     everywhere, no sleeping
+// (the constants and the layout: pile_spec.hpp)
 //
 // Variants:
 //   volpar           the world built from scene text generated for N (parseScene + buildScene), World::step()
@@ -20,22 +22,47 @@
 //   compound-planes  Bullet: one btCompoundShape of 27 btSphereShape(0.05) per body (shapes shared by all
 //                    bodies), static planes
 //   compound-boxes   Bullet: the compound bodies, ground and walls as static boxes 1 m thick
-// Every Bullet body has mass 2.7 kg and the 27-sphere inertia (not btBoxShape::calculateLocalInertia), so
-// the dynamics of all variants are comparable. Bullet runs btDbvtBroadphase, btDefaultCollisionConfiguration,
-// btCollisionDispatcher, btSequentialImpulseConstraintSolver (10 iterations, other solver settings at
-// their defaults) and btDiscreteDynamicsWorld, stepSimulation(dt, 0) (exactly one step of dt per call),
-// every body DISABLE_DEACTIVATION, friction sqrt(0.5) and restitution sqrt(0.1) on every object, static
-// ones included (Bullet multiplies the two objects' coefficients). Bodies have no motion state: the poses
-// are read from the bodies.
+//   jolt-box         Jolt: one JPH::BoxShape of half extent 0.15 m per body (Jolt's default convex radius,
+//                    0.05 m, rounds its edges), static planes, on one thread
+//   jolt-box-mt      the same on T threads
+//   jolt-compound    Jolt: one JPH::StaticCompoundShape of 27 SphereShape(0.05) at the lattice offsets, shared
+//                    by all bodies, static planes, on one thread
+//   jolt-compound-mt the same on T threads
+// The Jolt variants exist when pile_bench is built with VOLPAR_JOLT_SOURCE (tools/bench/CMakeLists.txt).
+// Every Bullet and Jolt body has mass 2.7 kg and the 27-sphere inertia (not the box shape's own), so the
+// dynamics of all variants are comparable.
+//
+// Bullet (pile_bullet.cpp) runs btDbvtBroadphase, btDefaultCollisionConfiguration, btCollisionDispatcher,
+// btSequentialImpulseConstraintSolver (10 iterations, other solver settings at their defaults) and
+// btDiscreteDynamicsWorld, stepSimulation(dt, 0) (exactly one step of dt per call), every body
+// DISABLE_DEACTIVATION, friction sqrt(0.5) and restitution sqrt(0.1) on every object, static ones included
+// (Bullet multiplies the two objects' coefficients). Bodies have no motion state: the poses are read from the
+// bodies.
+//
+// Jolt (pile_jolt.cpp) runs a PhysicsSystem with its default PhysicsSettings: 10 velocity and 2 position
+// iterations (volpar and Bullet: 10 iterations), Baumgarte 0.2, penetration slop 0.02 m, speculative contact
+// distance 0.02 m, restitution applied only to impacts faster than 1 m/s. Gravity (0, 0, -9.81) m/s^2 set on the
+// system (z up), one PhysicsSystem::Update(dt, 1 collision step) per step, a JobSystemThreadPool with
+// threads - 1 workers (the calling thread runs jobs too, as in Jolt's PerformanceTest), a TempAllocatorImpl
+// sized for the bodies' contacts, two object layers (static, moving) in two broad phase layers as in Jolt's
+// HelloWorld, OptimizeBroadPhase() after adding the bodies. Ground and walls are static bodies with
+// JPH::PlaneShape at volpar's planes (the solid half space behind each). Every body, static ones included, has
+// friction 0.5 and restitution 0.1 (Jolt combines the two bodies' as the geometric mean and the maximum: 0.5
+// and 0.1); the dynamic ones have the crate's mass and inertia (EOverrideMassProperties::MassAndInertiaProvided),
+// no damping (Jolt's default, 0.05 1/s linear and angular, is set to 0: the scene has none, nor do volpar and
+// Bullet) and mAllowSleeping false. An Update that reports a full buffer stops the run with that error.
 //
 // Each repeat runs every variant in turn: build the world (untimed), step it `steps` times (timed with
-// steady_clock, the stepping loop alone), then measure the end state:
-//   kinetic energy   volpar: World::energy().kinetic; Bullet: sum of 1/2 m v^2 + 1/2 w^T I w [J]
+// steady_clock, the stepping loop alone, and within it the first kCollapseSteps = 480 steps, the collapse, by a
+// clock read as step 480 begins; the whole run when steps <= 480), then measure the end state:
+//   kinetic energy   volpar: World::energy().kinetic; Bullet and Jolt: sum of 1/2 m v^2 + 1/2 w^T I w [J]
 //   max penetration  volpar: the deepest touching contact (particle-particle or particle-plane) in
 //                    World::contacts() after the last step, which describes the state the step produced
 //                    (the same value as World::stats().maxPenetration); Bullet: collision detection is run
 //                    once more on the final poses (untimed), then the largest -getDistance() over all
-//                    points of the dispatcher's manifolds [m]
+//                    points of the dispatcher's manifolds; Jolt: every dynamic body's shape collided with
+//                    the world at its pose (NarrowPhaseQuery::CollideShape, the body itself excluded,
+//                    untimed), the largest penetration depth [m]
 //   escaped          bodies whose centre is outside the walls or below z = 0
 //   highest          the highest body centre [m]
 //   max v            the speed of the fastest body centre [m/s]
@@ -44,12 +71,11 @@
 // refuses overlapping bodies; Bullet's boxes, whose corners reach 0.26 m from the centre while neighbouring
 // centres are 0.45 m apart, may start overlapping.
 //
-// Before timing, the harness checks that the volpar and Bullet worlds start from the same state (every
-// Bullet sphere centre against volpar's particle centres, and the inertia), and for N = 1000 that the
-// generated scene gives the particle positions of scenes/bench/pile-1000.yaml. `--self-check` runs only
-// these checks. The program exits with status 1 when a check fails or a run became non-finite.
-
-#include <btBulletDynamicsCommon.h>
+// Before timing, the harness checks that the volpar, Bullet and Jolt worlds start from the same state (every
+// Bullet sphere centre and every Jolt lattice site, from the body's centre-of-mass transform, against volpar's
+// particle centres, and the mass and inertia each engine reports), and for N = 1000 that the generated scene
+// gives the particle positions of scenes/bench/pile-1000.yaml. `--self-check` runs only these checks. The
+// program exits with status 1 when a check fails, a run became non-finite or an engine reported an error.
 
 #include <algorithm>
 #include <array>
@@ -60,7 +86,6 @@
 #include <cstdlib>
 #include <ctime>
 #include <fstream>
-#include <memory>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -68,6 +93,11 @@
 #include <utility>
 #include <vector>
 
+#include "tools/bench/pile_bullet.hpp"
+#include "tools/bench/pile_spec.hpp"
+#ifdef VOLPAR_PILE_HAS_JOLT
+#include "tools/bench/pile_jolt.hpp"
+#endif
 #include "volpar/engine/scene/scene_build.hpp"
 #include "volpar/engine/scene/scene_loader.hpp"
 #include "volpar/engine/world.hpp"
@@ -78,80 +108,11 @@
 
 namespace {
 
-using volpar::Quat;
-using volpar::Vec3;
+using namespace pile;  // the scene (pile_spec.hpp) and the peers' worlds (pile_bullet.hpp, pile_jolt.hpp)
 using Clock = std::chrono::steady_clock;
 
 // ---------------------------------------------------------------------------------------------------
 // the scene
-
-constexpr int kLatticeSide = 3;                       // spheres per body edge
-constexpr int kSpheresPerBody = 27;
-constexpr double kRadius = 0.05;                      // [m] sphere radius
-constexpr double kSpacing = 0.1;                      // [m] between sphere centres
-constexpr double kSphereMass = 0.1;                   // [kg]
-constexpr double kBodyMass = kSpheresPerBody * kSphereMass;  // [kg]
-constexpr double kBoxHalf = 0.15;                     // [m] half side of the box the spheres fill
-constexpr double kGridSpacing = 0.45;                 // [m] between body centres at start
-constexpr double kLowestCentre = 0.5;                 // [m] height of the lowest layer of centres
-constexpr double kWallGap = 0.3;                      // [m] from the outermost grid half width to a wall
-constexpr double kTurnZ = 0.37;                       // [rad] per body index, about world z ...
-constexpr double kTurnX = 0.11;                       // [rad] ... then about world x
-constexpr double kDt = 1.0 / 240.0;                   // [s]
-constexpr int kIterations = 10;
-constexpr double kRestitution = 0.1;
-constexpr double kFriction = 0.5;
-constexpr double kGravity = 9.81;                     // [m/s^2], along -z
-
-/// Offsets of the 27 sphere centres from the body centre, x fastest, then y, then z [m].
-std::array<Vec3, kSpheresPerBody> latticeOffsets() {
-  std::array<Vec3, kSpheresPerBody> out;
-  for (int c = 0; c < kSpheresPerBody; ++c)
-    out[static_cast<std::size_t>(c)] = kSpacing * Vec3(c % kLatticeSide - 1, (c / kLatticeSide) % kLatticeSide - 1,
-                                                       c / (kLatticeSide * kLatticeSide) - 1);
-  return out;
-}
-
-/// Principal moments of the crate about its centre [kg m^2]: each of the 27 particles stands for its lattice
-/// cell, a cube of side s (own moment m s^2 / 6), plus m d^2, d the particle's distance from the axis; the cells
-/// tile the solid 0.3 m cube, whose moments these are (all three equal: 0.0405).
-Vec3 latticeInertia() {
-  Vec3 inertia = Vec3::Zero();
-  for (const Vec3& o : latticeOffsets()) {
-    const Vec3 sq = o.cwiseProduct(o);
-    inertia += kSphereMass * Vec3(sq.y() + sq.z(), sq.x() + sq.z(), sq.x() + sq.y());
-    inertia += Vec3::Constant(kSphereMass * kSpacing * kSpacing / 6.0);
-  }
-  return inertia;
-}
-
-/// k = ceil(cbrt(n)), the smallest k with k^3 >= n, in integers.
-int gridSide(int n) {
-  auto k = static_cast<std::int64_t>(std::llround(std::cbrt(static_cast<double>(n))));
-  while (k * k * k < n) ++k;
-  while (k > 1 && (k - 1) * (k - 1) * (k - 1) >= n) --k;
-  return static_cast<int>(k);
-}
-
-/// The start state of pile-N, shared by every variant.
-struct PileLayout {
-  int n = 0;
-  int k = 0;              ///< bodies per grid row
-  double wall = 0.0;      ///< walls at x, y = +-wall [m]
-  std::vector<Vec3> centre;       ///< [N] body centres [m]
-  std::vector<Quat> orientation;  ///< [N] body frame -> world
-
-  explicit PileLayout(int bodies) : n(bodies), k(gridSide(bodies)), wall(kGridSpacing * k / 2.0 + kWallGap) {
-    const double half = (k - 1) / 2.0;
-    for (int i = 0; i < n; ++i) {
-      centre.emplace_back((i % k - half) * kGridSpacing, ((i / k) % k - half) * kGridSpacing,
-                          kLowestCentre + (i / (k * k)) * kGridSpacing);
-      orientation.push_back(Quat(Eigen::AngleAxisd(kTurnX * i, Vec3::UnitX())) *
-                            Quat(Eigen::AngleAxisd(kTurnZ * i, Vec3::UnitZ())));
-    }
-  }
-  [[nodiscard]] std::size_t particles() const { return static_cast<std::size_t>(n) * kSpheresPerBody; }
-};
 
 /// Shortest decimal text that reads back as the same double.
 std::string num(double v) {
@@ -202,17 +163,7 @@ std::string pileSceneText(const PileLayout& pile, int steps) {
 }
 
 // ---------------------------------------------------------------------------------------------------
-// what a run measures
-
-struct Quality {
-  double kinetic = 0.0;             ///< [J]
-  double maxPenetration = 0.0;      ///< deepest overlap of the end state [m]
-  double initialPenetration = 0.0;  ///< deepest overlap before the first step [m]
-  int escaped = 0;                  ///< bodies outside the walls or below the ground
-  double highest = 0.0;             ///< highest body centre [m]
-  double maxSpeed = 0.0;            ///< fastest body centre [m/s]
-  bool finite = true;               ///< false: a step produced NaN/inf (the run stopped there)
-};
+// what a run measures (Quality: pile_spec.hpp)
 
 struct Run {
   int n = 0;
@@ -220,33 +171,32 @@ struct Run {
   int repeat = 0;
   int steps = 0;
   int threads = 1;
-  double seconds = 0.0;  ///< the stepping loop alone [s]
+  double seconds = 0.0;          ///< the stepping loop alone [s]
+  int collapseSteps = 0;         ///< min(steps, kCollapseSteps)
+  double collapseSeconds = 0.0;  ///< the loop's first collapseSteps steps [s]
   Quality quality;
 };
 
-/// Body-centre counts of a state: escaped bodies, the highest centre and the fastest one.
-struct CentreTally {
-  explicit CentreTally(double wallHalfWidth) : wall(wallHalfWidth) {}
-  double wall = 0.0;  ///< walls at x, y = +-wall [m]
-  int escaped = 0;
-  double highest = -1e300;  ///< [m]
-  double maxSpeed = 0.0;    ///< [m/s]
-  bool finite = true;
-  /// A body with centre `c` [m] moving at `v` [m/s].
-  void add(const Vec3& c, const Vec3& v) {
-    if (!c.allFinite() || !v.allFinite()) finite = false;
-    if (!(std::abs(c.x()) <= wall && std::abs(c.y()) <= wall && c.z() >= 0.0)) ++escaped;
-    highest = std::max(highest, c.z());
-    maxSpeed = std::max(maxSpeed, v.norm());
+/// Calls `step` (false: the run went wrong, stop) `steps` times, timing the whole loop and its first
+/// kCollapseSteps steps (a clock read as step kCollapseSteps begins; the whole loop when it has no more).
+template <class Step>
+void timeSteps(Run& run, int steps, Step&& step) {
+  const auto t0 = Clock::now();
+  auto tCollapse = t0;
+  bool collapseRead = false;
+  for (int s = 0; s < steps; ++s) {
+    if (s == kCollapseSteps) {
+      tCollapse = Clock::now();
+      collapseRead = true;
+    }
+    if (!step()) break;
   }
-  /// Copies the counts into `q` (a non-finite state stays marked).
-  void into(Quality& q) const {
-    q.escaped = escaped;
-    q.highest = highest;
-    q.maxSpeed = maxSpeed;
-    q.finite = q.finite && finite;
-  }
-};
+  const auto t1 = Clock::now();
+  run.steps = steps;
+  run.seconds = std::chrono::duration<double>(t1 - t0).count();
+  run.collapseSteps = std::min(steps, kCollapseSteps);
+  run.collapseSeconds = collapseRead ? std::chrono::duration<double>(tCollapse - t0).count() : run.seconds;
+}
 
 // ---------------------------------------------------------------------------------------------------
 // volpar
@@ -278,14 +228,11 @@ Run runVolpar(const PileLayout& pile, int steps, int threads) {
   run.threads = threads;
   run.quality.initialPenetration = volparDeepest(world);
 
-  // the timed loop
-  const auto t0 = Clock::now();
-  for (int s = 0; s < steps; ++s)
-    if (volpar::hasFlag(world.step(), volpar::StepStatus::NonFinite)) {
-      run.quality.finite = false;
-      break;
-    }
-  run.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  timeSteps(run, steps, [&] {
+    if (!volpar::hasFlag(world.step(), volpar::StepStatus::NonFinite)) return true;
+    run.quality.finite = false;
+    return false;
+  });
 
   Quality& q = run.quality;
   q.kinetic = world.energy().kinetic;
@@ -299,185 +246,33 @@ Run runVolpar(const PileLayout& pile, int steps, int threads) {
 }
 
 // ---------------------------------------------------------------------------------------------------
-// Bullet
-
-enum class BulletSetup { Box, CompoundPlanes, CompoundBoxes };
-
-btVector3 toBt(const Vec3& v) {
-  return {static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z())};
-}
-Vec3 fromBt(const btVector3& v) {
-  return {static_cast<double>(v.x()), static_cast<double>(v.y()), static_cast<double>(v.z())};
-}
-btQuaternion toBt(const Quat& q) {
-  return {static_cast<btScalar>(q.x()), static_cast<btScalar>(q.y()), static_cast<btScalar>(q.z()),
-          static_cast<btScalar>(q.w())};
-}
-
-/// A Bullet world holding pile-N in one of the three setups.
-class BulletPile {
- public:
-  BulletPile(const PileLayout& pile, BulletSetup setup) : wall_(pile.wall) {
-    config_ = std::make_unique<btDefaultCollisionConfiguration>();
-    dispatcher_ = std::make_unique<btCollisionDispatcher>(config_.get());
-    broadphase_ = std::make_unique<btDbvtBroadphase>();
-    solver_ = std::make_unique<btSequentialImpulseConstraintSolver>();
-    world_ = std::make_unique<btDiscreteDynamicsWorld>(dispatcher_.get(), broadphase_.get(), solver_.get(),
-                                                       config_.get());
-    world_->setGravity(btVector3(0, 0, static_cast<btScalar>(-kGravity)));
-    world_->getSolverInfo().m_numIterations = kIterations;
-
-    // ground and walls: planes n . x = -wall with inward normals, or boxes 1 m thick behind those planes
-    if (setup == BulletSetup::CompoundBoxes) {
-      const double thick = 0.5;                                          // half thickness [m]
-      const double reach = pile.wall + 2.0 * thick;                      // half length, past the corners [m]
-      const double top = kLowestCentre + pile.k * kGridSpacing + 1.0;   // walls reach above the pile [m]
-      const double zMid = (top - 2.0 * thick) / 2.0, zHalf = (top + 2.0 * thick) / 2.0;
-      addStaticBox(Vec3(reach, reach, thick), Vec3(0, 0, -thick));
-      addStaticBox(Vec3(thick, reach, zHalf), Vec3(pile.wall + thick, 0, zMid));
-      addStaticBox(Vec3(thick, reach, zHalf), Vec3(-pile.wall - thick, 0, zMid));
-      addStaticBox(Vec3(reach, thick, zHalf), Vec3(0, pile.wall + thick, zMid));
-      addStaticBox(Vec3(reach, thick, zHalf), Vec3(0, -pile.wall - thick, zMid));
-    } else {
-      addStaticPlane(Vec3::UnitZ(), 0.0);
-      addStaticPlane(Vec3::UnitX(), -pile.wall);
-      addStaticPlane(-Vec3::UnitX(), -pile.wall);
-      addStaticPlane(Vec3::UnitY(), -pile.wall);
-      addStaticPlane(-Vec3::UnitY(), -pile.wall);
-    }
-
-    // one body shape shared by all bodies
-    btCollisionShape* bodyShape = nullptr;
-    if (setup == BulletSetup::Box) {
-      bodyShape = own(std::make_unique<btBoxShape>(toBt(Vec3(kBoxHalf, kBoxHalf, kBoxHalf))));
-    } else {
-      auto* sphere = own(std::make_unique<btSphereShape>(static_cast<btScalar>(kRadius)));
-      auto compound = std::make_unique<btCompoundShape>();
-      for (const Vec3& o : latticeOffsets()) {
-        btTransform child;
-        child.setIdentity();
-        child.setOrigin(toBt(o));
-        compound->addChildShape(child, sphere);
-      }
-      bodyShape = own(std::move(compound));
-    }
-
-    // the bodies, at rest, with the 27-sphere inertia
-    const btVector3 inertia = toBt(latticeInertia());
-    for (int i = 0; i < pile.n; ++i) {
-      const auto u = static_cast<std::size_t>(i);
-      btRigidBody::btRigidBodyConstructionInfo info(static_cast<btScalar>(kBodyMass), nullptr, bodyShape, inertia);
-      info.m_startWorldTransform = btTransform(toBt(pile.orientation[u]), toBt(pile.centre[u]));
-      bodies_.push_back(addBody(info));
-    }
-  }
-
-  BulletPile(const BulletPile&) = delete;
-  BulletPile& operator=(const BulletPile&) = delete;
-
-  ~BulletPile() {
-    for (auto it = objects_.rbegin(); it != objects_.rend(); ++it) world_->removeRigidBody(it->get());
-  }
-
-  /// Exactly one step of dt (maxSubSteps 0: no fixed-step accumulator, no interpolation).
-  void step() { world_->stepSimulation(static_cast<btScalar>(kDt), 0); }
-
-  /// Runs collision detection on the current poses (as the next step would) and returns the deepest
-  /// overlap over all manifold points [m].
-  double deepest() {
-    world_->performDiscreteCollisionDetection();
-    double worst = 0.0;
-    const int manifolds = dispatcher_->getNumManifolds();
-    for (int m = 0; m < manifolds; ++m) {
-      const btPersistentManifold* manifold = dispatcher_->getManifoldByIndexInternal(m);
-      for (int p = 0; p < manifold->getNumContacts(); ++p)
-        worst = std::max(worst, -static_cast<double>(manifold->getContactPoint(p).getDistance()));
-    }
-    return worst;
-  }
-
-  /// Kinetic energy, escaped bodies, the highest centre and the fastest body of the current state.
-  void measure(Quality& q) const {
-    q.kinetic = 0.0;
-    CentreTally tally(wall_);
-    for (const btRigidBody* body : bodies_) {
-      const Vec3 v = fromBt(body->getLinearVelocity());
-      const btMatrix3x3& basis = body->getWorldTransform().getBasis();
-      const Vec3 wLocal = fromBt(basis.transpose() * body->getAngularVelocity());  // body frame
-      const Vec3 inertia = fromBt(body->getLocalInertia());
-      q.kinetic += 0.5 * kBodyMass * v.squaredNorm() + 0.5 * wLocal.dot(inertia.cwiseProduct(wLocal));
-      tally.add(fromBt(body->getWorldTransform().getOrigin()), v);
-    }
-    tally.into(q);
-    q.finite = q.finite && std::isfinite(q.kinetic);
-  }
-
-  /// World centres of body i's 27 spheres (the compound setups' children; the lattice sites for boxes) [m].
-  [[nodiscard]] std::array<Vec3, kSpheresPerBody> sphereCentres(std::size_t i) const {
-    const btTransform& x = bodies_[i]->getWorldTransform();
-    std::array<Vec3, kSpheresPerBody> out;
-    const auto offsets = latticeOffsets();
-    for (std::size_t c = 0; c < out.size(); ++c) out[c] = fromBt(x * toBt(offsets[c]));
-    return out;
-  }
-  [[nodiscard]] Vec3 localInertia(std::size_t i) const { return fromBt(bodies_[i]->getLocalInertia()); }
-
- private:
-  template <class Shape>
-  Shape* own(std::unique_ptr<Shape> shape) {
-    Shape* raw = shape.get();
-    shapes_.push_back(std::move(shape));
-    return raw;
-  }
-
-  btRigidBody* addBody(const btRigidBody::btRigidBodyConstructionInfo& info) {
-    auto body = std::make_unique<btRigidBody>(info);
-    body->setFriction(static_cast<btScalar>(std::sqrt(kFriction)));
-    body->setRestitution(static_cast<btScalar>(std::sqrt(kRestitution)));
-    body->setActivationState(DISABLE_DEACTIVATION);
-    world_->addRigidBody(body.get());
-    objects_.push_back(std::move(body));
-    return objects_.back().get();
-  }
-
-  void addStaticPlane(const Vec3& normal, double offset) {
-    auto* shape = own(std::make_unique<btStaticPlaneShape>(toBt(normal), static_cast<btScalar>(offset)));
-    addBody(btRigidBody::btRigidBodyConstructionInfo(0, nullptr, shape));
-  }
-
-  void addStaticBox(const Vec3& halfExtents, const Vec3& centre) {
-    auto* shape = own(std::make_unique<btBoxShape>(toBt(halfExtents)));
-    btRigidBody::btRigidBodyConstructionInfo info(0, nullptr, shape);
-    info.m_startWorldTransform = btTransform(btQuaternion::getIdentity(), toBt(centre));
-    addBody(info);
-  }
-
-  double wall_ = 0.0;
-  // destroyed in reverse order: bodies (removed from the world first), shapes, then the world and its parts
-  std::unique_ptr<btDefaultCollisionConfiguration> config_;
-  std::unique_ptr<btCollisionDispatcher> dispatcher_;
-  std::unique_ptr<btDbvtBroadphase> broadphase_;
-  std::unique_ptr<btSequentialImpulseConstraintSolver> solver_;
-  std::unique_ptr<btDiscreteDynamicsWorld> world_;
-  std::vector<std::unique_ptr<btCollisionShape>> shapes_;
-  std::vector<std::unique_ptr<btRigidBody>> objects_;  // static ground and walls, then the bodies
-  std::vector<btRigidBody*> bodies_;                   // [N] the dynamic bodies, in pile order
-};
+// Bullet (pile_bullet.cpp) and Jolt (pile_jolt.cpp)
 
 Run runBullet(const PileLayout& pile, int steps, BulletSetup setup) {
   Run run;
   BulletPile world(pile, setup);
   run.quality.initialPenetration = world.deepest();
-
-  // the timed loop
-  const auto t0 = Clock::now();
-  for (int s = 0; s < steps; ++s) world.step();
-  run.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-
+  timeSteps(run, steps, [&] {
+    world.step();
+    return true;
+  });
   world.measure(run.quality);
   run.quality.maxPenetration = world.deepest();
   return run;
 }
+
+#ifdef VOLPAR_PILE_HAS_JOLT
+Run runJolt(const PileLayout& pile, int steps, JoltShape shape, int threads) {
+  Run run;
+  run.threads = threads;
+  JoltPile world(pile, shape, threads);
+  run.quality.initialPenetration = world.deepest();
+  timeSteps(run, steps, [&] { return world.step(); });
+  world.measure(run.quality);
+  run.quality.maxPenetration = world.deepest();
+  return run;
+}
+#endif
 
 // ---------------------------------------------------------------------------------------------------
 // checks
@@ -501,38 +296,72 @@ std::string sci(double v, int digits) {
   return buf.data();
 }
 
-/// The volpar and Bullet worlds of pile-N start from the same state: every Bullet sphere centre lies on a
-/// volpar particle of the same body, and the mass properties agree.
+/// How far a peer's world starts from volpar's: the largest distance from one of a body's sphere centres to the
+/// nearest particle of the same volpar body [m], and the largest mass [kg] and inertia [kg m^2] errors.
+struct StartDifference {
+  double position = 0.0, mass = 0.0, inertia = 0.0;
+};
+
+template <class Peer>
+StartDifference startDifference(const volpar::World& world, const Peer& peer) {
+  StartDifference d;
+  const volpar::BodyStore& bodies = world.bodies();
+  const Mat3 inertia = latticeInertia().asDiagonal();
+  for (std::size_t b = 0; b < bodies.size(); ++b) {
+    for (const Vec3& c : peer.sphereCentres(b)) {
+      double nearest = 1e300;
+      for (const volpar::ParticleId p : bodies.info[b].particles)
+        nearest = std::min(nearest, (world.particles().position[p.index()] - c).norm());
+      d.position = std::max(d.position, nearest);
+    }
+    d.mass = std::max(d.mass, std::abs(peer.mass(b) - kBodyMass));
+    d.inertia = std::max(d.inertia, (peer.localInertia(b) - inertia).cwiseAbs().maxCoeff());
+  }
+  return d;
+}
+
+/// The volpar world of pile-N holds its bodies as specified, and the Bullet and Jolt worlds start from the same
+/// state: every sphere centre of theirs lies on a volpar particle of the same body, and the masses and inertias
+/// agree.
 void checkSameStart(const PileLayout& pile) {
-  constexpr double kTol = 1e-5;  // [m] Bullet's btScalar may be float
+  constexpr double kTol = 1e-5;         // [m] Bullet's btScalar may be float; Jolt's positions are floats
+  constexpr double kMassTol = 1e-6;     // [kg] a float's inverse mass, inverted
+  constexpr double kInertiaTol = 1e-6;  // [kg m^2]
+  const std::string name = "pile-" + std::to_string(pile.n);
   auto built = buildVolparPile(pile, 1);
   if (!built) {
-    report(false, "pile-" + std::to_string(pile.n) + ": " + built.error().toString());
+    report(false, name + ": " + built.error().toString());
     return;
   }
   const volpar::World& world = built->world;
-  const BulletPile bullet(pile, BulletSetup::CompoundPlanes);
   const volpar::BodyStore& bodies = world.bodies();
   bool countsOk = bodies.size() == static_cast<std::size_t>(pile.n) && world.particles().size() == pile.particles();
-  double worstPosition = 0.0, worstMass = 0.0, worstInertia = 0.0;
+  double worstMass = 0.0, worstInertia = 0.0;  // volpar's own
   for (std::size_t b = 0; countsOk && b < bodies.size(); ++b) {
-    const auto& particles = bodies.info[b].particles;
-    countsOk = countsOk && particles.size() == static_cast<std::size_t>(kSpheresPerBody);
-    for (const Vec3& c : bullet.sphereCentres(b)) {
-      double nearest = 1e300;
-      for (const volpar::ParticleId p : particles)
-        nearest = std::min(nearest, (world.particles().position[p.index()] - c).norm());
-      worstPosition = std::max(worstPosition, nearest);
-    }
+    countsOk = countsOk && bodies.info[b].particles.size() == static_cast<std::size_t>(kSpheresPerBody);
     worstMass = std::max(worstMass, std::abs(bodies.info[b].mass - kBodyMass));
     worstInertia = std::max(worstInertia, (bodies.info[b].inertiaLocal - latticeInertia()).cwiseAbs().maxCoeff());
-    worstInertia = std::max(worstInertia, (bullet.localInertia(b) - latticeInertia()).cwiseAbs().maxCoeff());
   }
-  report(countsOk && worstPosition < kTol && worstMass < 1e-12 && worstInertia < 1e-6,
-         "pile-" + std::to_string(pile.n) + ": volpar and Bullet start alike: " + std::to_string(bodies.size()) +
-             " bodies, " + std::to_string(world.particles().size()) + " particles; sphere centres within " +
-             sci(worstPosition, 2) + " m, mass within " + sci(worstMass, 1) + " kg, inertia (" +
-             fixed(latticeInertia().x(), 5) + " kg m^2 per axis) within " + sci(worstInertia, 1));
+  if (!countsOk) {
+    report(false, name + ": volpar built " + std::to_string(bodies.size()) + " bodies, " +
+                      std::to_string(world.particles().size()) + " particles");
+    return;
+  }
+  const auto line = [&](const std::string& peer, const StartDifference& d) {
+    report(d.position < kTol && d.mass < kMassTol && d.inertia < kInertiaTol,
+           name + ": volpar and " + peer + " start alike: sphere centres within " + sci(d.position, 2) +
+               " m, mass within " + sci(d.mass, 1) + " kg, inertia within " + sci(d.inertia, 1) + " kg m^2");
+  };
+  report(worstMass < 1e-12 && worstInertia < 1e-6,
+         name + ": volpar's world: " + std::to_string(bodies.size()) + " bodies, " +
+             std::to_string(world.particles().size()) + " particles, mass " + fixed(kBodyMass, 1) +
+             " kg within " + sci(worstMass, 1) + ", inertia " + fixed(latticeInertia().x(), 5) +
+             " kg m^2 per axis within " + sci(worstInertia, 1));
+  line("Bullet (compound-planes)", startDifference(world, BulletPile(pile, BulletSetup::CompoundPlanes)));
+#ifdef VOLPAR_PILE_HAS_JOLT
+  line("Jolt (jolt-box, lattice sites)", startDifference(world, JoltPile(pile, JoltShape::Box, 1)));
+  line("Jolt (jolt-compound, its children)", startDifference(world, JoltPile(pile, JoltShape::Compound, 1)));
+#endif
 }
 
 /// The generated pile-1000 gives the particles and planes of scenes/bench/pile-1000.yaml.
@@ -610,19 +439,24 @@ double median(std::vector<double> v) {
 struct Summary {
   std::string variant;
   double medianSeconds = 0.0, minSeconds = 0.0, maxSeconds = 0.0;
-  double stepsPerSecond = 0.0;  ///< at the median time
-  Quality quality;              ///< of the last repeat
-  bool qualityVaries = false;   ///< the repeats did not end in the same state
+  double stepsPerSecond = 0.0;          ///< at the median time
+  double medianCollapseSeconds = 0.0;   ///< of the first kCollapseSteps steps [s]
+  double collapseStepsPerSecond = 0.0;  ///< over those steps, at their median time
+  Quality quality;                      ///< of the last repeat
+  bool qualityVaries = false;           ///< the repeats did not end in the same state
   bool finite = true;
+  std::string error;                    ///< the first error an engine reported in these runs
 };
 
 Summary summarise(const std::vector<Run>& runs) {
   Summary s;
   s.variant = runs.front().variant;
-  std::vector<double> seconds;
+  std::vector<double> seconds, collapse;
   for (const Run& r : runs) {
     seconds.push_back(r.seconds);
+    collapse.push_back(r.collapseSeconds);
     s.finite = s.finite && r.quality.finite;
+    if (s.error.empty()) s.error = r.quality.error;
     const Quality& a = r.quality;
     const Quality& b = runs.front().quality;
     if (a.kinetic != b.kinetic || a.maxPenetration != b.maxPenetration || a.escaped != b.escaped ||
@@ -633,54 +467,67 @@ Summary summarise(const std::vector<Run>& runs) {
   s.minSeconds = *std::min_element(seconds.begin(), seconds.end());
   s.maxSeconds = *std::max_element(seconds.begin(), seconds.end());
   s.stepsPerSecond = runs.front().steps / s.medianSeconds;
+  s.medianCollapseSeconds = median(collapse);
+  s.collapseStepsPerSecond = runs.front().collapseSteps / s.medianCollapseSeconds;
   s.quality = runs.back().quality;
   return s;
 }
 
 bool isVolpar(const std::string& variant) { return variant.rfind("volpar", 0) == 0; }
 
+/// Ratios of the median steps/s (`rate`), volpar's variants over every peer variant and over the fastest
+/// compound setup of any peer (above 1: volpar is faster).
+void printRatios(const std::string& title, const std::vector<Summary>& summaries, double Summary::*rate) {
+  std::vector<const Summary*> ours, theirs;
+  const Summary* fastestCompound = nullptr;
+  for (const Summary& s : summaries) {
+    (isVolpar(s.variant) ? ours : theirs).push_back(&s);
+    if (s.variant.find("compound") != std::string::npos &&
+        (!fastestCompound || s.*rate > fastestCompound->*rate))
+      fastestCompound = &s;
+  }
+  if (ours.empty() || theirs.empty()) return;
+  std::printf("steps/s ratio, %s (median volpar / median peer; above 1: volpar is faster)\n%-16s", title.c_str(), "");
+  for (const Summary* b : theirs) std::printf(" %16s", b->variant.c_str());
+  if (fastestCompound) std::printf("   fastest compound (%s)", fastestCompound->variant.c_str());
+  std::printf("\n");
+  for (const Summary* a : ours) {
+    std::printf("%-16s", a->variant.c_str());
+    for (const Summary* b : theirs) std::printf(" %16.3f", a->*rate / b->*rate);
+    if (fastestCompound) std::printf("   %.3f", a->*rate / fastestCompound->*rate);
+    std::printf("\n");
+  }
+}
+
 void printTable(const PileLayout& pile, int steps, const std::vector<Summary>& summaries) {
+  const int collapseSteps = std::min(steps, kCollapseSteps);
+  const std::string collapseSecondsLabel = "0-" + std::to_string(collapseSteps) + " s";
+  const std::string collapseRateLabel = "st/s 0-" + std::to_string(collapseSteps);
   std::printf("\npile-%d: %d bodies, %zu particles, k = %d, walls at +-%.3f m, %d steps of 1/240 s\n", pile.n,
               pile.n, pile.particles(), pile.k, pile.wall, steps);
-  std::printf("%-16s %9s %21s %10s %16s %10s %11s %11s %11s %7s %11s %10s\n", "variant", "median s",
-              "(min-max)", "steps/s", "particle-steps/s", "us/body-st", "KE [J]", "max pen [m]", "pen@0 [m]",
-              "escaped", "highest [m]", "max v [m/s]");
+  std::printf("%-16s %9s %21s %10s %10s %12s %16s %10s %11s %11s %11s %7s %11s %10s\n", "variant", "median s",
+              "(min-max)", "steps/s", collapseSecondsLabel.c_str(), collapseRateLabel.c_str(), "particle-steps/s",
+              "us/body-st", "KE [J]", "max pen [m]", "pen@0 [m]", "escaped", "highest [m]", "max v [m/s]");
   for (const Summary& s : summaries) {
     const double particleRate = s.stepsPerSecond * static_cast<double>(pile.particles());
     const double usPerBodyStep = 1e6 * s.medianSeconds / (static_cast<double>(steps) * pile.n);
     const Quality& q = s.quality;
     std::array<char, 48> range{};
     std::snprintf(range.data(), range.size(), "(%.4g-%.4g)", s.minSeconds, s.maxSeconds);
-    std::printf("%-16s %9.4g %21s %10.1f %16.4g %10.3f %11.4g %11.3e %11.3e %7d %11.3f %11.3e%s%s\n",
-                s.variant.c_str(), s.medianSeconds, range.data(), s.stepsPerSecond, particleRate, usPerBodyStep,
-                q.kinetic, q.maxPenetration, q.initialPenetration, q.escaped, q.highest, q.maxSpeed,
-                s.qualityVaries ? "  (end state differs between repeats)" : "",
-                s.finite ? "" : "  NON-FINITE");
+    std::printf("%-16s %9.4g %21s %10.1f %10.4g %12.1f %16.4g %10.3f %11.4g %11.3e %11.3e %7d %11.3f %11.3e%s%s%s%s\n",
+                s.variant.c_str(), s.medianSeconds, range.data(), s.stepsPerSecond, s.medianCollapseSeconds,
+                s.collapseStepsPerSecond, particleRate, usPerBodyStep, q.kinetic, q.maxPenetration,
+                q.initialPenetration, q.escaped, q.highest, q.maxSpeed,
+                s.qualityVaries ? "  (end state differs between repeats)" : "", s.finite ? "" : "  NON-FINITE",
+                s.error.empty() ? "" : "  STOPPED: ", s.error.c_str());
   }
   std::printf("max pen %% of r:");
   for (const Summary& s : summaries)
     std::printf("  %s %.1f %%", s.variant.c_str(), 100.0 * s.quality.maxPenetration / kRadius);
   std::printf("\n");
-
-  // ratios of median steps/s, volpar over Bullet (above 1: volpar is faster)
-  std::vector<const Summary*> ours, theirs;
-  const Summary* fastestCompound = nullptr;
-  for (const Summary& s : summaries) {
-    (isVolpar(s.variant) ? ours : theirs).push_back(&s);
-    if (s.variant.rfind("compound", 0) == 0 && (!fastestCompound || s.stepsPerSecond > fastestCompound->stepsPerSecond))
-      fastestCompound = &s;
-  }
-  if (ours.empty() || theirs.empty()) return;
-  std::printf("steps/s ratio (median volpar / median Bullet; above 1: volpar is faster)\n%-16s", "");
-  for (const Summary* b : theirs) std::printf(" %16s", b->variant.c_str());
-  if (fastestCompound) std::printf("   fastest compound (%s)", fastestCompound->variant.c_str());
-  std::printf("\n");
-  for (const Summary* a : ours) {
-    std::printf("%-16s", a->variant.c_str());
-    for (const Summary* b : theirs) std::printf(" %16.3f", a->stepsPerSecond / b->stepsPerSecond);
-    if (fastestCompound) std::printf("   %.3f", a->stepsPerSecond / fastestCompound->stepsPerSecond);
-    std::printf("\n");
-  }
+  printRatios("whole run", summaries, &Summary::stepsPerSecond);
+  if (steps > kCollapseSteps)
+    printRatios("first " + std::to_string(kCollapseSteps) + " steps", summaries, &Summary::collapseStepsPerSecond);
 }
 
 void writeCsv(const std::string& path, const std::vector<Run>& runs) {
@@ -690,7 +537,8 @@ void writeCsv(const std::string& path, const std::vector<Run>& runs) {
     std::exit(1);
   }
   out << "n,particles,variant,repeat,steps,threads,seconds,steps_per_s,particle_steps_per_s,us_per_body_step,"
-         "kinetic_energy_J,max_penetration_m,initial_penetration_m,escaped,highest_m,max_speed_m_per_s,finite\n";
+         "kinetic_energy_J,max_penetration_m,initial_penetration_m,escaped,highest_m,max_speed_m_per_s,finite,"
+         "collapse_steps,collapse_seconds,collapse_steps_per_s,error\n";
   for (const Run& r : runs) {
     const double particles = static_cast<double>(r.n) * kSpheresPerBody;
     out << r.n << ',' << r.n * kSpheresPerBody << ',' << r.variant << ',' << r.repeat << ',' << r.steps << ','
@@ -698,19 +546,41 @@ void writeCsv(const std::string& path, const std::vector<Run>& runs) {
         << num(particles * r.steps / r.seconds) << ',' << num(1e6 * r.seconds / (static_cast<double>(r.steps) * r.n))
         << ',' << num(r.quality.kinetic) << ',' << num(r.quality.maxPenetration) << ','
         << num(r.quality.initialPenetration) << ',' << r.quality.escaped << ',' << num(r.quality.highest) << ','
-        << num(r.quality.maxSpeed) << ',' << (r.quality.finite ? 1 : 0) << '\n';
+        << num(r.quality.maxSpeed) << ',' << (r.quality.finite ? 1 : 0) << ',' << r.collapseSteps << ','
+        << num(r.collapseSeconds) << ',' << num(r.collapseSteps / r.collapseSeconds) << ',' << r.quality.error
+        << '\n';
   }
 }
 
 // ---------------------------------------------------------------------------------------------------
 // command line
 
-const std::vector<std::string> kVariants = {"volpar", "volpar-mt", "box", "compound-planes", "compound-boxes"};
+const std::vector<std::string> kBulletVariants = {"box", "compound-planes", "compound-boxes"};
+const std::vector<std::string> kJoltVariants = {"jolt-box", "jolt-box-mt", "jolt-compound", "jolt-compound-mt"};
+#ifdef VOLPAR_PILE_HAS_JOLT
+constexpr bool kHasJolt = true;
+#else
+constexpr bool kHasJolt = false;
+#endif
+
+/// The variants this build runs, in the order of a run.
+std::vector<std::string> allVariants() {
+  std::vector<std::string> out = {"volpar", "volpar-mt"};
+  out.insert(out.end(), kBulletVariants.begin(), kBulletVariants.end());
+  if (kHasJolt) out.insert(out.end(), kJoltVariants.begin(), kJoltVariants.end());
+  return out;
+}
+
+std::string joined(const std::vector<std::string>& items) {
+  std::string out;
+  for (const std::string& item : items) out += (out.empty() ? "" : ",") + item;
+  return out;
+}
 
 struct Options {
   std::vector<int> n = {125, 1000, 8000, 27000};
   std::optional<int> steps, repeats;
-  std::vector<std::string> variants = kVariants;
+  std::vector<std::string> variants = allVariants();
   int threads = 2;
   std::string csv;
   bool quick = false;
@@ -723,11 +593,16 @@ void usage(std::FILE* to) {
                "  --n LIST          body counts, comma-separated (default 125,1000,8000,27000)\n"
                "  --steps S         steps per run (default 2000)\n"
                "  --repeats R       runs of every variant per N, interleaved (default 3)\n"
-               "  --variants LIST   of volpar,volpar-mt,box,compound-planes,compound-boxes (default all)\n"
-               "  --threads T       volpar-mt threads (default 2)\n"
+               "  --variants LIST   of %s (default all)%s\n"
+               "  --threads T       threads of volpar-mt%s (default 2)\n"
                "  --csv FILE        write every run, one row per run\n"
                "  --quick           smoke run: 200 steps, 1 repeat (unless --steps/--repeats say otherwise)\n"
-               "  --self-check      only check the generated worlds (volpar vs Bullet, pile-1000 vs its file)\n");
+               "  --self-check      only check the generated worlds (volpar vs Bullet%s, pile-1000 vs its file)\n",
+               joined(allVariants()).c_str(),
+               kHasJolt ? ""
+                        : "\n                    (jolt-box, jolt-box-mt, jolt-compound, jolt-compound-mt: build "
+                          "with VOLPAR_JOLT_SOURCE)",
+               kHasJolt ? ", jolt-box-mt and jolt-compound-mt" : "", kHasJolt ? " and Jolt" : "");
 }
 
 std::vector<std::string> split(const std::string& text) {
@@ -808,9 +683,12 @@ std::optional<Options> parseOptions(int argc, char** argv) {
       const auto v = next();
       if (!v) return std::nullopt;
       o.variants = split(*v);
+      const std::vector<std::string> known = allVariants();
       for (const std::string& name : o.variants)
-        if (std::find(kVariants.begin(), kVariants.end(), name) == kVariants.end()) {
-          std::fprintf(stderr, "pile_bench: unknown variant '%s'\n", name.c_str());
+        if (std::find(known.begin(), known.end(), name) == known.end()) {
+          const bool jolt = std::find(kJoltVariants.begin(), kJoltVariants.end(), name) != kJoltVariants.end();
+          std::fprintf(stderr, "pile_bench: %s variant '%s'%s\n", jolt ? "no" : "unknown", name.c_str(),
+                       jolt ? ": this pile_bench was built without Jolt (CMake's VOLPAR_JOLT_SOURCE)" : "");
           return std::nullopt;
         }
       if (o.variants.empty()) return std::nullopt;
@@ -828,6 +706,12 @@ Run runVariant(const PileLayout& pile, const std::string& variant, int steps, in
   if (variant == "volpar-mt") return runVolpar(pile, steps, threads);
   if (variant == "box") return runBullet(pile, steps, BulletSetup::Box);
   if (variant == "compound-planes") return runBullet(pile, steps, BulletSetup::CompoundPlanes);
+#ifdef VOLPAR_PILE_HAS_JOLT
+  if (variant == "jolt-box") return runJolt(pile, steps, JoltShape::Box, 1);
+  if (variant == "jolt-box-mt") return runJolt(pile, steps, JoltShape::Box, threads);
+  if (variant == "jolt-compound") return runJolt(pile, steps, JoltShape::Compound, 1);
+  if (variant == "jolt-compound-mt") return runJolt(pile, steps, JoltShape::Compound, threads);
+#endif
   return runBullet(pile, steps, BulletSetup::CompoundBoxes);
 }
 
@@ -843,11 +727,16 @@ int main(int argc, char** argv) {
   std::printf("pile_bench  %s\n", now().c_str());
   std::printf("machine: %u hardware threads, %s, load average %s\n", std::thread::hardware_concurrency(),
               cpuModel().c_str(), loadAverage().c_str());
-  std::printf("Bullet %d.%02d (btScalar: %zu-byte floats), bodies: mass %.1f kg, 27-sphere inertia %.5f kg m^2 per "
-              "axis in every variant; box variant: static planes, btBoxShape margin %.3f m\n",
-              btGetVersion() / 100, btGetVersion() % 100, sizeof(btScalar), kBodyMass, latticeInertia().x(),
-              static_cast<double>(CONVEX_DISTANCE_MARGIN));
-  std::printf("steps %d, repeats %d, volpar-mt threads %d\n", steps, repeats, o.threads);
+  std::printf("bodies: mass %.1f kg, 27-sphere inertia %.5f kg m^2 per axis in every variant\n", kBodyMass,
+              latticeInertia().x());
+  std::printf("%s; box variant: static planes\n", bulletDescription().c_str());
+#ifdef VOLPAR_PILE_HAS_JOLT
+  std::printf("%s\n", joltDescription().c_str());
+#else
+  std::printf("Jolt: not built (CMake's VOLPAR_JOLT_SOURCE)\n");
+#endif
+  std::printf("steps %d (the first %d timed on their own as well), repeats %d, threads of the -mt variants %d\n",
+              steps, std::min(steps, kCollapseSteps), repeats, o.threads);
 
   // the worlds start alike
   for (const int n : o.n) {
@@ -860,7 +749,7 @@ int main(int argc, char** argv) {
 
   // per N: every repeat runs every variant in turn
   std::vector<Run> all;
-  bool allFinite = true;
+  bool allOk = true;
   for (const int n : o.n) {
     const PileLayout pile(n);
     std::vector<std::vector<Run>> runs(o.variants.size());
@@ -870,9 +759,10 @@ int main(int argc, char** argv) {
         run.n = n;
         run.variant = o.variants[v];
         run.repeat = r;
-        run.steps = steps;
-        std::fprintf(stderr, "  pile-%d %-16s repeat %d: %.4g s\n", n, run.variant.c_str(), r, run.seconds);
-        allFinite = allFinite && run.quality.finite;
+        std::fprintf(stderr, "  pile-%d %-16s repeat %d: %.4g s (first %d steps %.4g s)%s%s\n", n,
+                     run.variant.c_str(), r, run.seconds, run.collapseSteps, run.collapseSeconds,
+                     run.quality.error.empty() ? "" : ": ", run.quality.error.c_str());
+        allOk = allOk && run.quality.finite && run.quality.error.empty();
         runs[v].push_back(run);
         all.push_back(run);
       }
@@ -882,5 +772,5 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
   }
   if (!o.csv.empty()) writeCsv(o.csv, all);
-  return gCheckFailed || !allFinite ? 1 : 0;
+  return gCheckFailed || !allOk ? 1 : 0;
 }

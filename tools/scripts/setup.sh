@@ -10,8 +10,10 @@
 #                                 # other) for SECONDS (default 600) over build/hardening/fuzz/long/<name>/
 #                                 # corpus, seeded from fuzz/corpus/<name>/; prints executions, coverage and
 #                                 # findings (docs/hardening.md)
-#   tools/scripts/setup.sh bench [ARGS]  # Release build of pile_bench, runs pile-N against Bullet
-#                                        # (default: --n 125,1000 --repeats 3 --csv build/pile_bench.csv)
+#   tools/scripts/setup.sh bench [ARGS]  # Release build of pile_bench, runs pile-N against Bullet and Jolt
+#                                        # (default: --n 125,1000 --repeats 3 --csv build/pile_bench.csv);
+#                                        # Jolt Physics from $VOLPAR_JOLT_SOURCE, or else cloned (v5.5.0) into
+#                                        # build/jolt-src; without either, pile_bench runs without Jolt
 #   tools/scripts/setup.sh deps   # packages only
 #
 # Run as root, or as a user with sudo.
@@ -80,7 +82,22 @@ case "${1:-}" in
   bench)
     install_deps
     shift
-    cmake --preset release
+    # Jolt Physics for pile_bench's Jolt variants: $VOLPAR_JOLT_SOURCE, or else a clone of v5.5.0
+    jolt=${VOLPAR_JOLT_SOURCE:-}
+    if [[ -z $jolt ]]; then
+      jolt=$root/build/jolt-src
+      if [[ ! -f $jolt/Build/CMakeLists.txt ]]; then
+        rm -rf "$jolt"
+        if ! git clone --depth 1 --branch v5.5.0 https://github.com/jrouwe/JoltPhysics "$jolt"; then
+          echo "setup: cloning Jolt Physics into build/jolt-src failed (no git or network?): no Jolt in pile_bench"
+          rm -rf "$jolt"
+          jolt=
+        fi
+      fi
+    elif [[ -d $jolt ]]; then
+      jolt=$(cd "$jolt" && pwd)  # CMake keeps the path in its cache: absolute
+    fi
+    cmake --preset release -DVOLPAR_JOLT_SOURCE="$jolt"
     cmake --build --preset release --target pile_bench
     if (($# == 0)); then set -- --n 125,1000 --repeats 3 --csv build/pile_bench.csv; fi
     build/release/tools/bench/pile_bench "$@"
