@@ -7,6 +7,11 @@ namespace volpar {
 
 namespace {
 
+/// The skin of a rigid pair's candidate list, as a fraction of the sum of the two bodies' largest radii: a
+/// wider skin lists more pairs to test each step but searches the grids again less often (a collapsing pile
+/// moves its neighbours by a centimetre in a few steps).
+constexpr double kListSkin = 0.25;
+
 /// Contact between particles a and b (world positions, radii) if they touch, or come within `margin` x
 /// (r_a + r_b) plus `sweep` [m] of touching (a speculative contact, negative depth).
 bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, double sweep, ParticleContact& c) {
@@ -255,7 +260,7 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
     } else {
       list.relRotation = relRotation;
       list.relPosition = relPosition;
-      list.skin = 0.1 * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius);
+      list.skin = kListSkin * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius);
       // (a pair speeding up lists a little farther than it needs, so that it is not searched every step)
       list.sweep = 1.5 * swept;
       w.found.clear();
