@@ -68,6 +68,8 @@ SKIP_UNLESS = [
     (r"\bpvpython\b|^xvfb-run\b", "needs ParaView and Xvfb", lambda c: not (shutil.which("pvpython") and
                                                                             shutil.which("xvfb-run"))),
     (r"tools/examples/python/", "needs the Python module, which this build lacks", lambda c: not c.has_python),
+    (r"pile_bench\b.*--variants \S*jolt-", "needs a pile_bench built with Jolt (VOLPAR_JOLT_SOURCE)",
+     lambda c: not c.has_jolt),
 ]
 # `sh long` blocks: the arguments that shorten a run of each program (appended to its own)
 SHORTEN = {
@@ -75,6 +77,7 @@ SHORTEN = {
     "collision_bench": ["--quick"],
     "narrow_phase_bench": ["--quick"],
     "impact_sweep.py": ["--speeds", "2,4", "--seeds", "1"],
+    "plot_pile_bench.py": [],
 }
 # Lines tried up to three times: a virtual X server sometimes fails to come up under load
 RETRY = [r"^xvfb-run\b"]
@@ -180,6 +183,10 @@ class Checker:
         self.source, self.build, self.work = source, build, work
         self.volpar = os.path.join(build, "tools", "volpar")
         self.has_python = os.path.isdir(os.path.join(build, "python", "volpar"))
+        # (pile_bench lists its Jolt variants among those it runs only when it was built with Jolt)
+        pile = os.path.join(build, "tools", "bench", "pile_bench")
+        self.has_jolt = os.path.exists(pile) and "jolt-box,jolt-box-mt" in subprocess.run(
+            [pile, "--help"], capture_output=True, text=True, timeout=60).stdout
         self.failures = []
         self.ran = {"python": 0, "yaml": 0, "sh": 0, "synopsis": 0}
         self.lines_run, self.skipped = 0, {}

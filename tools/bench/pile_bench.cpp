@@ -76,6 +76,10 @@
 // particle centres, and the mass and inertia each engine reports), and for N = 1000 that the generated scene
 // gives the particle positions of scenes/bench/pile-1000.yaml. `--self-check` runs only these checks. The
 // program exits with status 1 when a check fails, a run became non-finite or an engine reported an error.
+//
+// `--memory` measures instead of timing: for every N and variant a fresh process of this program
+// (`--memory-run`) builds the world and steps it `steps` times; its peak resident size (VmHWM) less what it
+// held before building (VmRSS) is the variant's memory, printed in MiB and per body.
 
 #include <algorithm>
 #include <array>
@@ -92,6 +96,8 @@
 #include <thread>
 #include <utility>
 #include <vector>
+
+#include <unistd.h>
 
 #include "tools/bench/pile_bullet.hpp"
 #include "tools/bench/pile_spec.hpp"
@@ -585,6 +591,8 @@ struct Options {
   std::string csv;
   bool quick = false;
   bool selfCheck = false;
+  bool memory = false;     ///< --memory: each variant's peak memory, in a process of its own
+  bool memoryOne = false;  ///< (--memory-run: this process is one such measurement)
 };
 
 void usage(std::FILE* to) {
@@ -597,7 +605,10 @@ void usage(std::FILE* to) {
                "  --threads T       threads of volpar-mt%s (default 2)\n"
                "  --csv FILE        write every run, one row per run\n"
                "  --quick           smoke run: 200 steps, 1 repeat (unless --steps/--repeats say otherwise)\n"
-               "  --self-check      only check the generated worlds (volpar vs Bullet%s, pile-1000 vs its file)\n",
+               "  --self-check      only check the generated worlds (volpar vs Bullet%s, pile-1000 vs its file)\n"
+               "  --memory          instead of timing: every variant's memory, each N and variant stepped once for\n"
+               "                    --steps in a fresh process of this program (its peak resident memory less what\n"
+               "                    it held before building the world), per body\n",
                joined(allVariants()).c_str(),
                kHasJolt ? ""
                         : "\n                    (jolt-box, jolt-box-mt, jolt-compound, jolt-compound-mt: build "
@@ -654,6 +665,10 @@ std::optional<Options> parseOptions(int argc, char** argv) {
       o.quick = true;
     } else if (key == "--self-check") {
       o.selfCheck = true;
+    } else if (key == "--memory") {
+      o.memory = true;
+    } else if (key == "--memory-run") {
+      o.memoryOne = true;
     } else if (key == "--steps") {
       if (!count(o.steps)) return std::nullopt;
     } else if (key == "--repeats") {
@@ -715,6 +730,61 @@ Run runVariant(const PileLayout& pile, const std::string& variant, int steps, in
   return runBullet(pile, steps, BulletSetup::CompoundBoxes);
 }
 
+/// A line "Name:   N kB" of /proc/self/status, in bytes (0 when absent).
+std::size_t statusBytes(const char* name) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  const std::string key = std::string(name) + ":";
+  while (std::getline(in, line))
+    if (line.rfind(key, 0) == 0) return static_cast<std::size_t>(std::strtoull(line.c_str() + key.size(), nullptr, 10)) * 1024;
+  return 0;
+}
+
+/// --memory-run: one variant at one N in this process; prints "memory BEFORE PEAK" [bytes] (resident before
+/// building the world, the peak resident size after stepping it).
+int memoryRun(const Options& o, int steps) {
+  const std::size_t before = statusBytes("VmRSS");
+  const PileLayout pile(o.n.front());
+  const Run run = runVariant(pile, o.variants.front(), steps, o.threads);
+  std::printf("memory %zu %zu\n", before, statusBytes("VmHWM"));
+  return run.quality.finite && run.quality.error.empty() ? 0 : 1;
+}
+
+/// --memory: every N and variant measured by memoryRun in a child process of this program.
+int memoryTable(const Options& o, int steps) {
+  std::printf("\nmemory: peak resident size of a process that builds pile-N and steps it %d times, less what it "
+              "held before building\n%8s %-18s %12s %14s\n", steps, "N", "variant", "peak [MiB]", "per body [KiB]");
+  // (this program's own file: /proc/self/exe in the command would name the shell that popen runs)
+  std::array<char, 4096> self{};
+  const ssize_t length = readlink("/proc/self/exe", self.data(), self.size() - 1);
+  if (length <= 0) {
+    std::fprintf(stderr, "pile_bench: cannot find this program's file (/proc/self/exe)\n");
+    return 1;
+  }
+  const std::string program(self.data(), static_cast<std::size_t>(length));
+  bool ok = true;
+  for (const int n : o.n)
+    for (const std::string& variant : o.variants) {
+      const std::string command = "'" + program + "' --memory-run --n " + std::to_string(n) + " --variants " + variant +
+                                  " --steps " + std::to_string(steps) + " --threads " + std::to_string(o.threads);
+      std::FILE* child = popen(command.c_str(), "r");
+      std::size_t before = 0, peak = 0;
+      std::array<char, 256> line{};
+      while (child && std::fgets(line.data(), static_cast<int>(line.size()), child))
+        if (std::sscanf(line.data(), "memory %zu %zu", &before, &peak) != 2) continue;
+      const int status = child ? pclose(child) : -1;
+      if (status != 0 || peak == 0) {
+        std::printf("%8d %-18s failed (status %d)\n", n, variant.c_str(), status);
+        ok = false;
+        continue;
+      }
+      const double grown = static_cast<double>(peak - std::min(peak, before));
+      std::printf("%8d %-18s %12.1f %14.2f\n", n, variant.c_str(), grown / (1024.0 * 1024.0), grown / 1024.0 / n);
+      std::fflush(stdout);
+    }
+  return ok ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -723,6 +793,7 @@ int main(int argc, char** argv) {
   const Options& o = *parsed;
   const int steps = o.steps.value_or(o.quick ? 200 : 2000);
   const int repeats = o.repeats.value_or(o.quick ? 1 : 3);
+  if (o.memoryOne) return memoryRun(o, steps);
 
   std::printf("pile_bench  %s\n", now().c_str());
   std::printf("machine: %u hardware threads, %s, load average %s\n", std::thread::hardware_concurrency(),
@@ -746,6 +817,7 @@ int main(int argc, char** argv) {
   }
   std::fflush(stdout);
   if (o.selfCheck) return gCheckFailed ? 1 : 0;
+  if (o.memory) return memoryTable(o, steps) != 0 || gCheckFailed ? 1 : 0;
 
   // per N: every repeat runs every variant in turn
   std::vector<Run> all;

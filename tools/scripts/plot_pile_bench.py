@@ -6,8 +6,9 @@
 One line per variant through the medians of its runs at each N, with the min-max of the runs as error
 bars, log-log axes. Prints the medians and, per variant, the growth of the cost from the smallest N to
 each larger one. Needs matplotlib (Debian: python3-matplotlib) for the plot; without it the table is
-still printed. --markdown also prints the table of docs/benchmarks.md (medians per N and variant, ratios
-of volpar's steps/s to Bullet's variants measured in the same files).
+still printed. --markdown also prints the table of docs/benchmarks.md (medians per N and variant; volpar's steps/s over
+Jolt's and Bullet's box variants and Jolt's compounds measured in the same files, over the whole run and, in
+brackets, over the first 480 steps).
 """
 
 import argparse
@@ -28,15 +29,30 @@ def read(paths):
     return runs
 
 
+ORDER = ["volpar", "volpar-mt", "jolt-box", "jolt-box-mt", "jolt-compound", "jolt-compound-mt", "box",
+         "compound-planes", "compound-boxes"]
+# the peers volpar's speed is given against: Jolt's boxes on one thread and on T threads, Jolt's compounds on T
+# threads, and Bullet's boxes
+PEERS = ["jolt-box", "jolt-box-mt", "jolt-compound-mt", "box"]
+
+
 def markdown(runs):
-    """The table of medians, min-max and quality, with ratios to Bullet at the same N."""
-    print("| N | variant | median s (min–max) | steps/s | particle-steps/s | µs/body-step | ratio to box | "
-          "ratio to compound-boxes | KE [J] | pen [mm] (% of r) | escaped | highest [m] |")
-    print("|---:|---|---|---:|---:|---:|---:|---:|---:|---|---:|---:|")
-    order = ["volpar", "volpar-mt", "box", "compound-planes", "compound-boxes"]
+    """The table of medians, min-max and quality, with volpar's steps/s over each peer's at the same N, over the
+    whole run and over the first steps timed on their own (the collapse)."""
+    peers = [p for p in PEERS if any(v == p for v, _ in runs)]
+    head = " | ".join(f"× {p}" for p in peers)
+    print("| N | variant | median s (min–max) | steps/s | steps/s first 480 | µs/body-step | " + head +
+          " | KE [J] | pen [mm] (% of r) | escaped | highest [m] |")
+    print("|---:|---|---|---:|---:|---:|" + "---:|" * len(peers) + "---:|---|---:|---:|")
     for n in sorted({n for _, n in runs}):
-        med = {v: statistics.median(float(r["seconds"]) for r in runs[(v, n)]) for v in order if (v, n) in runs}
-        for v in order:
+        med, first = {}, {}
+        for v in ORDER:
+            if (v, n) not in runs:
+                continue
+            med[v] = statistics.median(float(r["seconds"]) for r in runs[(v, n)])
+            if "collapse_seconds" in runs[(v, n)][0]:
+                first[v] = statistics.median(float(r["collapse_seconds"]) for r in runs[(v, n)])
+        for v in ORDER:
             if (v, n) not in runs:
                 continue
             rows = runs[(v, n)]
@@ -44,10 +60,20 @@ def markdown(runs):
             steps = int(rows[0]["steps"])
             m = med[v]
             last = rows[-1]  # the quality of a run (volpar's runs are identical)
-            ratio = lambda peer: f"{med[peer] / m:.2f}" if v.startswith("volpar") and peer in med else ""
+
+            def ratio(peer):
+                if not v.startswith("volpar") or peer not in med:
+                    return ""
+                whole = f"{med[peer] / m:.2f}"
+                if v in first and peer in first:
+                    whole += f" ({first[peer] / first[v]:.2f})"
+                return whole
+
+            collapse = f"{int(rows[0]['collapse_steps']) / first[v]:.1f}" if v in first else ""
             pen = float(last["max_penetration_m"])
-            print(f"| {n} | {v} | {m:.3g} ({min(secs):.3g}–{max(secs):.3g}) | {steps / m:.1f} | "
-                  f"{n * 27 * steps / m:.3g} | {1e6 * m / (steps * n):.2f} | {ratio('box')} | {ratio('compound-boxes')} | "
+            ratios = " | ".join(ratio(p) for p in peers)
+            print(f"| {n} | {v} | {m:.3g} ({min(secs):.3g}–{max(secs):.3g}) | {steps / m:.1f} | {collapse} | "
+                  f"{1e6 * m / (steps * n):.2f} | {ratios} | "
                   f"{float(last['kinetic_energy_J']):.3g} | {1e3 * pen:.2f} ({100 * pen / 0.05:.1f} %) | "
                   f"{last['escaped']} | {float(last['highest_m']):.2f} |")
 
