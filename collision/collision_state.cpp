@@ -231,15 +231,12 @@ void NarrowPhase::saveCache(StateArchive& archive) const {
   std::vector<std::uint32_t> groups;
   std::vector<Quat> rotation;
   std::vector<Vec3> position;
-  std::vector<std::uint8_t> apart;
   for (const CachedGroup& g : cache_.groups) {
     groups.insert(groups.end(), {g.key.kind, g.key.a, g.key.b, g.pairFirst, g.pairCount, g.patchFirst, g.patchCount});
     rotation.push_back(g.relRotation);
     position.push_back(g.relPosition);
-    apart.push_back(g.apart ? 1 : 0);
   }
   archive.put("narrow_phase/groups", std::span<const std::uint32_t>(groups), 7);
-  archive.put("narrow_phase/group_apart", std::span<const std::uint8_t>(apart));
   archive.putQuat("narrow_phase/group_rotation", rotation);
   archive.putVec3("narrow_phase/group_position", position);
   std::vector<std::uint32_t> pairs;
@@ -266,7 +263,6 @@ bool NarrowPhase::restoreCache(StateReader& r) {
   const std::size_t ng = groups.size() / 7;
   const std::vector<Quat> rotation = r.quat("narrow_phase/group_rotation", ng);
   const std::vector<Vec3> position = r.vec3("narrow_phase/group_position", ng);
-  const std::vector<std::uint8_t> apart = r.get<std::uint8_t>("narrow_phase/group_apart", 1, ng);
   const std::vector<std::uint32_t> pairs = r.get<std::uint32_t>("narrow_phase/pairs", 2);
   const std::size_t np = pairs.size() / 2;
   std::vector<std::uint32_t> order = r.get<std::uint32_t>("narrow_phase/order", 1, np);
@@ -288,8 +284,7 @@ bool NarrowPhase::restoreCache(StateReader& r) {
     cg.patchCount = g[6];
     cg.relRotation = rotation[k];
     cg.relPosition = position[k];
-    cg.apart = apart[k] != 0;
-    bool fits = apart[k] <= 1 && g[0] <= 1 && (k == 0 || c.groups[k - 1].key < cg.key) && g[4] > 0 &&
+    bool fits = g[0] <= 1 && (k == 0 || c.groups[k - 1].key < cg.key) && g[4] > 0 &&
                 static_cast<std::uint64_t>(g[3]) + g[4] <= np && static_cast<std::uint64_t>(g[5]) + g[6] <= nq;
     // the patches of a group take its contacts in turn (NarrowPhase::reuse), each once
     std::uint64_t taken = 0;

@@ -71,8 +71,13 @@ void NarrowPhase::relativePose(const NarrowPhaseInput& in, const ContactGroup& g
   position = a.orientation.conjugate() * (b.position - a.position);
 }
 
-bool NarrowPhase::poseWithin(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
-                             const CachedGroup& c, double angle, double shift) {
+bool NarrowPhase::reusable(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
+                           const CachedGroup& c) const {
+  if (c.pairCount != g.count) return false;
+  const ParticleContact* contacts = set.contacts.data() + g.first;
+  const auto* pairs = cache_.pairs.data() + c.pairFirst;
+  for (std::uint32_t i = 0; i < g.count; ++i)
+    if (contacts[i].a != pairs[i].first || contacts[i].b != pairs[i].second) return false;
   // a plane's patches depend on the contacts alone (the normal is the plane's)
   if (g.plane.valid()) return true;
   Quat rotation;
@@ -80,105 +85,61 @@ bool NarrowPhase::poseWithin(const NarrowPhaseInput& in, const ContactSet& set, 
   relativePose(in, g, rotation, position);
   const double turned = 2.0 * (c.relRotation.conjugate() * rotation).vec().norm();
   const ParticleStore& p = *in.particles;
-  const ParticleContact& first = set.contacts[g.first];
-  const double rsum = p.radius[first.a.index()] + p.radius[first.b.index()];
-  return turned < angle && (position - c.relPosition).norm() < shift * rsum;
-}
-
-bool NarrowPhase::reusable(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
-                           const CachedGroup& c) const {
-  if (c.apart || c.pairCount != g.count) return false;
-  const ParticleContact* contacts = set.contacts.data() + g.first;
-  const auto* pairs = cache_.pairs.data() + c.pairFirst;
-  for (std::uint32_t i = 0; i < g.count; ++i)
-    if (contacts[i].a != pairs[i].first || contacts[i].b != pairs[i].second) return false;
-  return poseWithin(in, set, g, c, settings_.reuseAngle, settings_.reuseShift);
-}
-
-bool NarrowPhase::apartAlong(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
-                             const CachedPatch& cp) {
-  const Vec3 n = g.plane.valid() ? cp.normal : Vec3(in.bodies->state[g.a.index()].orientation * cp.normal);
-  for (std::uint32_t i = g.first; i < g.first + g.count; ++i) {
-    const ParticleContact& c = set.contacts[i];
-    if (c.touching() || !(c.normal.dot(n) > PatchBuilder::kCentreLines)) return false;
-  }
-  return true;
-}
-
-void NarrowPhase::restorePatch(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
-                               const CachedPatch& cp, const std::uint32_t* idx, std::uint32_t count, std::uint32_t base,
-                               Worker& w, PatchSet& out) const {
-  const ParticleStore& p = *in.particles;
-  const BodyState& sa = in.bodies->state[g.a.index()];
-  const bool plane = g.plane.valid();
-  ContactPatch patch;
-  patch.a = g.a;
-  patch.b = g.b;
-  patch.plane = g.plane;
-  patch.normal = plane ? cp.normal : Vec3(sa.orientation * cp.normal);
-  patch.margin = cp.margin;
-  patch.planeCase = cp.planeCase;
-  patch.source = cp.source;
-  patch.validated = cp.validated;
-  patch.lookAhead = cp.lookAhead;
-  patch.lookAheadCase = cp.lookAheadCase;
-  patch.curvedSide = cp.curvedSide;
-  if (!plane)
-    for (std::size_t e = 0; e < 2; ++e) patch.core[e] = sa.position + sa.orientation * cp.core[e];
-  patch.first = static_cast<std::uint32_t>(w.o->contacts.size());
-  patch.count = count;
-  // depths along the normal and the deepest point, from the current positions
-  std::uint32_t deepest = base + idx[0];
-  patch.depth = 0.0;
-  for (std::uint32_t i = 0; i < count; ++i) {
-    const std::uint32_t ci = base + idx[i];
-    w.o->contacts.push_back(ci);
-    const ParticleContact& ct = set.contacts[ci];
-    if (ct.depth > set.contacts[deepest].depth) deepest = ci;
-    double d = ct.depth;
-    if (!plane) {
-      const Vec3 n = contactNormal(patch, p.position[ct.a.index()], p.position[ct.b.index()], out.flipped[ci] != 0);
-      d = p.radius[ct.a.index()] + p.radius[ct.b.index()] - n.dot(p.position[ct.b.index()] - p.position[ct.a.index()]);
-    }
-    out.depthAlongNormal[ci] = d;
-    patch.depth = std::max(patch.depth, d);
-  }
-  patch.point = set.contacts[deepest].point;
-  ++w.o->stats.patches;
-  ++w.o->stats.reused;
-  ++w.o->stats.byCase[static_cast<std::size_t>(patch.planeCase)];
-  if (!patch.validated) ++w.o->stats.unvalidated;
-  w.o->patches.push_back(patch);
+  const double rsum = p.radius[contacts[0].a.index()] + p.radius[contacts[0].b.index()];
+  return turned < settings_.reuseAngle && (position - c.relPosition).norm() < settings_.reuseShift * rsum;
 }
 
 void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedGroup& c,
                         Worker& w, PatchSet& out) const {
+  const ParticleStore& p = *in.particles;
+  const Quat& qa = in.bodies->state[g.a.index()].orientation;
+  const bool plane = g.plane.valid();
   const std::size_t patchBegin = w.o->patches.size();
   std::uint32_t k = c.pairFirst;  // position in cache order (parallel to pairs)
   for (std::uint32_t j = 0; j < c.patchCount; ++j) {
     const CachedPatch& cp = cache_.patches[c.patchFirst + j];
-    restorePatch(in, set, g, cp, cache_.order.data() + k, cp.count, g.first, w, out);
-    k += cp.count;
+    ContactPatch patch;
+    patch.a = g.a;
+    patch.b = g.b;
+    patch.plane = g.plane;
+    patch.normal = plane ? cp.normal : Vec3(qa * cp.normal);
+    patch.margin = cp.margin;
+    patch.planeCase = cp.planeCase;
+    patch.source = cp.source;
+    patch.validated = cp.validated;
+    patch.lookAhead = cp.lookAhead;
+    patch.lookAheadCase = cp.lookAheadCase;
+    patch.curvedSide = cp.curvedSide;
+    if (!plane)
+      for (std::size_t e = 0; e < 2; ++e) patch.core[e] = in.bodies->state[g.a.index()].position + qa * cp.core[e];
+    patch.first = static_cast<std::uint32_t>(w.o->contacts.size());
+    patch.count = cp.count;
+    // depths along the normal and the deepest point, from the current positions
+    std::uint32_t deepest = g.first + cache_.order[k];
+    patch.depth = 0.0;
+    for (std::uint32_t i = 0; i < cp.count; ++i, ++k) {
+      const std::uint32_t ci = g.first + cache_.order[k];
+      w.o->contacts.push_back(ci);
+      const ParticleContact& ct = set.contacts[ci];
+      if (ct.depth > set.contacts[deepest].depth) deepest = ci;
+      const Vec3 n = contactNormal(patch, p.position[ct.a.index()], p.position[ct.b.index()], out.flipped[ci] != 0);
+      const double d = plane ? ct.depth
+                             : p.radius[ct.a.index()] + p.radius[ct.b.index()] -
+                                   n.dot(p.position[ct.b.index()] - p.position[ct.a.index()]);
+      out.depthAlongNormal[ci] = d;
+      patch.depth = std::max(patch.depth, d);
+    }
+    patch.point = set.contacts[deepest].point;
+    ++w.o->stats.patches;
+    ++w.o->stats.reused;
+    ++w.o->stats.byCase[static_cast<std::size_t>(patch.planeCase)];
+    if (!patch.validated) ++w.o->stats.unvalidated;
+    w.o->patches.push_back(patch);
   }
   remember(in, set, g, patchBegin, w);
   // keep the pose of the computation, not this step's: the tolerance bounds the total drift
   w.o->cache.groups.back().relRotation = c.relRotation;
   w.o->cache.groups.back().relPosition = c.relPosition;
-}
-
-void NarrowPhase::reuseApart(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
-                             const CachedGroup& c, Worker& w, PatchSet& out) const {
-  const std::size_t patchBegin = w.o->patches.size();
-  // (the group's contacts in their order, as the patch builder orders one patch's)
-  w.order.resize(g.count);
-  std::iota(w.order.begin(), w.order.end(), 0u);
-  for (std::uint32_t i = g.first; i < g.first + g.count; ++i) out.flipped[i] = 0;
-  restorePatch(in, set, g, cache_.patches[c.patchFirst], w.order.data(), g.count, g.first, w, out);
-  remember(in, set, g, patchBegin, w);
-  CachedGroup& kept = w.o->cache.groups.back();
-  kept.relRotation = c.relRotation;
-  kept.relPosition = c.relPosition;
-  kept.apart = true;
 }
 
 void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
@@ -258,13 +219,6 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
           reuse(in, contacts, g, *cursor, w, out);
           continue;
         }
-      }
-      // an apart group of one patch keeps its plane within the wider tolerance
-      if (cacheableGroup && cursor != cache_.groups.end() && cursor->key == keyOf(g) && cursor->patchCount == 1 &&
-          poseWithin(in, contacts, g, *cursor, settings_.apartReuseAngle, settings_.apartReuseShift) &&
-          apartAlong(in, contacts, g, cache_.patches[cursor->patchFirst])) {
-        reuseApart(in, contacts, g, *cursor, w, out);
-        continue;
       }
       const std::size_t patchBegin = w.o->patches.size();
       makePatches(in, contacts, g, w, out);

@@ -33,11 +33,7 @@ namespace volpar {
 /// the contact pairs it had when its patches were last computed and (for body pairs) the relative pose has
 /// not moved since by more than PlaneSettings::reuseAngle and reuseShift, the patches are taken over: the
 /// normals are carried along in body A's frame, and every contact's depth along its patch normal and each
-/// patch's deepest point are computed afresh. A settled stack or pile then costs almost nothing here. A
-/// group none of whose contacts touches keeps its one patch's plane within the wider tolerance of
-/// PlaneSettings::apartReuseAngle and apartReuseShift, even as pairs enter or leave the speculative reach,
-/// as one patch while every contact's centre line stays within the patch builder's bound of its normal: a
-/// pile collapsing, whose neighbours mostly pass each other apart, then solves few planes.
+/// patch's deepest point are computed afresh. A settled stack or pile then costs almost nothing here.
 ///
 /// Groups are independent: with a ThreadPool they are shared among its workers in contiguous ranges and
 /// the results merged in group order, so the output does not depend on the number of threads.
@@ -80,8 +76,6 @@ class NarrowPhase {
     Vec3 relPosition = Vec3::Zero();      // B's position in A's frame when computed
     std::uint32_t pairFirst = 0, pairCount = 0;    // the contact pairs, in cache pairs
     std::uint32_t patchFirst = 0, patchCount = 0;  // the patches, in cache patches
-    /// its plane was taken over for contacts apart, not computed on these pairs: touching, it is computed
-    bool apart = false;
   };
   struct Cache {
     std::vector<CachedGroup> groups;                            // sorted by key
@@ -120,30 +114,12 @@ class NarrowPhase {
   [[nodiscard]] static GroupKey keyOf(const ContactGroup& g);
   /// The relative pose of B in A's frame (planes: A's own pose).
   static void relativePose(const NarrowPhaseInput& in, const ContactGroup& g, Quat& rotation, Vec3& position);
-  /// Whether B's pose relative to A is within `angle` [rad] and `shift` x (r_a + r_b) of the pose `c` was
-  /// computed at (a body-plane group: always).
-  [[nodiscard]] static bool poseWithin(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
-                                       const CachedGroup& c, double angle, double shift);
-  /// The same contact pairs as `c`, and the pose within reuseAngle and reuseShift.
   [[nodiscard]] bool reusable(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
                               const CachedGroup& c) const;
-  /// No contact of the group touches, and every contact's centre line is within the patch builder's bound
-  /// (PatchBuilder::kCentreLines) of the cached patch's normal.
-  [[nodiscard]] static bool apartAlong(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
-                                       const CachedPatch& cp);
-  /// Takes over all of `c`'s patches, each with its contacts in the order it had them.
   void reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedGroup& c,
              Worker& w, PatchSet& out) const;
-  /// Takes over `c`'s one patch for an apart group: all its contacts, in their order.
-  void reuseApart(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedGroup& c,
-                  Worker& w, PatchSet& out) const;
-  /// A cached patch over the contacts idx[0..count) (+ base), with its depths and deepest point from the
-  /// current positions, appended to the worker's output.
-  void restorePatch(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedPatch& cp,
-                    const std::uint32_t* idx, std::uint32_t count, std::uint32_t base, Worker& w, PatchSet& out) const;
   void remember(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, std::size_t patchBegin,
                 Worker& w) const;
-  /// Patches and planes computed afresh.
   void makePatches(const NarrowPhaseInput& in, const ContactSet& contacts, const ContactGroup& g, Worker& w,
                    PatchSet& out) const;
   PlaneSettings settings_;

@@ -9,6 +9,7 @@ namespace volpar {
 
 namespace {
 
+constexpr double kCentreLines = 0.2;  // cos 78 degrees: neighbouring contacts' centre lines
 
 /// A particle's surface normal facing `towards` in the world, and whether it has one a contact can use
 /// (not interior, not on an edge, corner, chain or a sheet's rim).

@@ -27,8 +27,6 @@ namespace volpar {
 
 class PatchBuilder {
  public:
-  /// cos 78 degrees: the least cosine between neighbouring contacts' centre lines in one patch
-  static constexpr double kCentreLines = 0.2;
   /// Largest angle between a contact's direction and its patch seed's [rad].
   double spread = 0.7;  // 40 degrees
   /// The same where a side is deformable [rad]: such a patch's contacts are each resolved on their own, and

@@ -81,13 +81,6 @@ struct PlaneSettings {
   bool reuse = true;
   double reuseAngle = 1e-2;
   double reuseShift = 0.05;
-  /// A group none of whose contacts touches (every pair only within the speculative reach) needs its plane
-  /// only to stop an approach at contact: it takes over its single patch's plane while the relative pose
-  /// stays within apartReuseAngle [rad] and apartReuseShift x (r_a + r_b) of the computation's, even where
-  /// its contact pairs changed, provided its contacts still form one patch. Once a pair touches, the tight
-  /// tolerance above applies.
-  double apartReuseAngle = 0.05;
-  double apartReuseShift = 0.25;
 };
 
 }  // namespace volpar

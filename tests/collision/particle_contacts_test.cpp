@@ -360,83 +360,39 @@ TEST(TemporalCoherence, ReusedPlanesSeparateAsWellAsFreshOnes) {
   PlaneSettings settings = fresh.settings();
   settings.reuse = false;
   fresh.setSettings(settings);
-  // apart groups' normals against the fresh ones: the default apartReuseAngle (0.05 rad) plus the 0.02 rad
-  // allowed for touching groups
-  constexpr double kApartBound = 0.07;
-  ASSERT_LE(w.settings().planes.apartReuseAngle, 0.05);
   PatchSet patches;
   std::size_t reused = 0, compared = 0, close = 0, lostValidity = 0, depthApart = 0, touching = 0;
-  std::size_t apartContacts = 0, apartClose = 0, apartGroupsTakenOver = 0;
   double worstDepth = 0.0;
-  // the patches of each group, in both results: patches come group by group, in group order
-  const auto groupPatches = [](const PatchSet& ps, const ContactGroup& g, std::size_t& cursor) {
-    const std::size_t first = cursor;
-    while (cursor < ps.patches.size() && ps.contacts[ps.patches[cursor].first] >= g.first &&
-           ps.contacts[ps.patches[cursor].first] < g.first + g.count)
-      ++cursor;
-    return std::make_pair(first, cursor);
-  };
   for (int step = 0; step < 600; ++step) {
     ASSERT_EQ(w.step(), StepStatus::Ok);
     reused += w.stats().patchesReused;
     fresh.run(w.narrowPhaseInput(), w.contacts(), patches);
     const PatchSet& got = w.patches();
-    const ContactSet& set = w.contacts();
-    std::size_t gotCursor = 0, freshCursor = 0;
-    for (const ContactGroup& g : set.groups) {
-      const auto [g0, g1] = groupPatches(got, g, gotCursor);
-      const auto [f0, f1] = groupPatches(patches, g, freshCursor);
-      bool anyTouching = false;
-      for (std::uint32_t i = g.first; i < g.first + g.count; ++i) anyTouching = anyTouching || set.contacts[i].touching();
-      if (!anyTouching) {
-        // a group apart: its plane may be one taken over within the wider tolerance, for all its contacts
-        // (where the fresh result splits them); each contact's normal against the fresh one it would get
-        if (g1 - g0 == 1 && f1 - f0 > 1) ++apartGroupsTakenOver;
-        for (std::uint32_t i = g.first; i < g.first + g.count; ++i) {
-          const ContactPatch& x = got.patches[got.patchOfContact[i]];
-          const ContactPatch& y = patches.patches[patches.patchOfContact[i]];
-          ASSERT_GE(got.patchOfContact[i], g0);
-          ASSERT_LT(got.patchOfContact[i], g1);
-          ++apartContacts;
-          if (x.normal.dot(y.normal) > std::cos(kApartBound)) ++apartClose;
-        }
-        continue;
-      }
-      // a group that touches: the same patches (contact membership does not depend on reuse)
-      ASSERT_EQ(g1 - g0, f1 - f0) << "step " << step;
-      for (std::size_t k = 0; k < g1 - g0; ++k) {
-        const ContactPatch &x = got.patches[g0 + k], &y = patches.patches[f0 + k];
-        ASSERT_EQ(x.count, y.count) << "step " << step;
-        ASSERT_TRUE(std::equal(got.contacts.begin() + x.first, got.contacts.begin() + x.first + x.count,
-                               patches.contacts.begin() + y.first))
-            << "step " << step;
-        ++compared;
-        if (x.normal.dot(y.normal) > std::cos(0.02)) ++close;
-        if (y.validated && !x.validated) ++lostValidity;
-        // what the solver sees: the deepest overlap along the normal, where the fresh plane has one
-        if (y.depth > 0.0) {
-          const double dd = std::abs(x.depth - y.depth);
-          worstDepth = std::max(worstDepth, dd);
-          if (dd > 1e-3) ++depthApart;
-          ++touching;
-        }
+    // the same patches (contact membership does not depend on reuse)
+    ASSERT_EQ(got.patches.size(), patches.patches.size()) << "step " << step;
+    ASSERT_EQ(got.contacts, patches.contacts) << "step " << step;
+    for (std::size_t i = 0; i < patches.patches.size(); ++i) {
+      const ContactPatch &x = got.patches[i], &y = patches.patches[i];
+      ++compared;
+      if (x.normal.dot(y.normal) > std::cos(0.02)) ++close;
+      if (y.validated && !x.validated) ++lostValidity;
+      // what the solver sees: the deepest overlap along the normal, where the fresh plane has one
+      if (y.depth > 0.0) {
+        const double dd = std::abs(x.depth - y.depth);
+        worstDepth = std::max(worstDepth, dd);
+        if (dd > 1e-3) ++depthApart;
+        ++touching;
       }
     }
-    ASSERT_EQ(gotCursor, got.patches.size());
-    ASSERT_EQ(freshCursor, patches.patches.size());
   }
-  EXPECT_GT(reused, (compared + apartContacts / 4) / 2) << "planes were hardly ever reused: nothing was tested";
+  EXPECT_GT(reused, compared / 2) << "planes were hardly ever reused: nothing was tested";
   EXPECT_EQ(lostValidity, 0u);
-  // nearly every normal of a touching group is the fresh one within the reuse tolerance (the rest: a near
-  // tie between two candidates)
-  EXPECT_GT(static_cast<double>(close), 0.97 * static_cast<double>(compared)) << close << " of " << compared;
+  // nearly every normal is the fresh one within the reuse tolerance (the rest: a near tie between two
+  // candidates, or the centre line of a lone speculative pair that moved sideways within the tolerance)
+  EXPECT_GT(static_cast<double>(close), 0.97 * static_cast<double>(compared));
   // and nearly every touching patch has the fresh plane's depth within 1 mm (2 % of the radius)
   EXPECT_GT(touching, 10000u);
   EXPECT_LT(static_cast<double>(depthApart), 0.002 * static_cast<double>(touching)) << "worst " << worstDepth << " m";
-  // apart groups: most contacts have the fresh normal within the wider tolerance
-  EXPECT_GT(apartContacts, 100000u);
-  EXPECT_GT(static_cast<double>(apartClose), 0.95 * static_cast<double>(apartContacts))
-      << apartClose << " of " << apartContacts << " (" << apartGroupsTakenOver << " groups kept whole)";
 }
 
 }  // namespace
