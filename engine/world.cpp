@@ -2,9 +2,9 @@
 
 #include <Eigen/SVD>
 #include <array>
-#include <limits>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "volpar/dynamics/contact_solver.hpp"
 #include "volpar/dynamics/deformable_integrator.hpp"
@@ -487,42 +487,41 @@ void World::buildContactPoints() {
       const std::uint32_t* idx = ps.contacts.data() + patch.first;
       std::uint32_t* kept = keptContacts_.data() + patch.first;
       std::uint32_t count = 0;
-      // (a bound on a point's approach speed: the sides' relative linear velocity plus each rigid side's spin
-      // times the point's distance from its centre, at most the reach of the corner of its particles' box
-      // farthest from the centre plus half the pair's gap (the point lies midway across it). A gap beyond what
-      // that closes in the step is left out without working out its normal and velocities; a deformable side
-      // has no bound here)
-      bool bounded = sideA.kind != BodyKind::Deformable && sideB.kind != BodyKind::Deformable;
-      double linear = 0.0, spinTotal = 0.0, spinReach = 0.0;
-      if (bounded) {
-        const auto spin = [&](const Side& side, BodyId b, double& turn, double& reach) {
-          turn = reach = 0.0;
-          if (side.kind != BodyKind::Rigid) return;
-          const Aabb& box = bodyBoxes_[b.index()];
-          turn = side.w.norm();
-          reach = (box.hi - side.centre).cwiseAbs().cwiseMax((box.lo - side.centre).cwiseAbs()).norm();
-        };
-        double turnA = 0.0, reachA = 0.0, turnB = 0.0, reachB = 0.0;
-        spin(sideA, patch.a, turnA, reachA);
-        spin(sideB, patch.b, turnB, reachB);
-        linear = (sideA.v - sideB.v).norm();
-        spinTotal = turnA + turnB;
-        spinReach = turnA * reachA + turnB * reachB;
-        bounded = std::isfinite(linear + spinTotal + spinReach);
-      }
       if (mode != kNone) {
+        // (a bound on a point's approach speed: the sides' relative linear velocity plus each rigid side's
+        // spin times the point's distance from its centre, at most the reach of the corner of its particles'
+        // box farthest from the centre plus half the pair's gap (the point lies midway across it). A gap
+        // beyond what that closes in the step is left out without working out its normal and velocities; a
+        // deformable side has no bound here)
+        bool bounded = sideA.kind != BodyKind::Deformable && sideB.kind != BodyKind::Deformable;
+        double linear = 0.0, spinTotal = 0.0, spinReach = 0.0;
+        if (bounded) {
+          const auto spin = [&](const Side& side, BodyId b, double& turn, double& reach) {
+            turn = reach = 0.0;
+            if (side.kind != BodyKind::Rigid) return;
+            const Aabb& box = bodyBoxes_[b.index()];
+            turn = side.w.norm();
+            reach = (box.hi - side.centre).cwiseAbs().cwiseMax((box.lo - side.centre).cwiseAbs()).norm();
+          };
+          double turnA = 0.0, reachA = 0.0, turnB = 0.0, reachB = 0.0;
+          spin(sideA, patch.a, turnA, reachA);
+          spin(sideB, patch.b, turnB, reachB);
+          linear = (sideA.v - sideB.v).norm();
+          spinTotal = turnA + turnB;
+          spinReach = turnA * reachA + turnB * reachB;
+          bounded = std::isfinite(linear + spinTotal + spinReach);
+        }
         for (std::uint32_t k = 0; k < patch.count; ++k) {
           const ParticleContact& c = cs.contacts[idx[k]];
           const double depth = mode == kRaw ? c.depth : ps.depthAlongNormal[idx[k]];
           if (depth < 0.0) {
+            const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
             if (bounded) {
               const double fastest = (linear + spinReach + spinTotal * 0.5 * std::abs(c.depth)) * (1.0 + 1e-9);
-              const double rs = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
-              if (-depth > settings_.speculativeDistance * rs + fastest * dt) continue;
+              if (-depth > settings_.speculativeDistance * rsum + fastest * dt) continue;
             }
             // (the patch's normal as the contact sees it: from its particle a to b)
             const Vec3 n = mode == kRaw ? c.normal : normalOf(patch, idx[k]);
-            const double rsum = particles_.radius[c.a.index()] + (c.b.valid() ? particles_.radius[c.b.index()] : 0.0);
             const double approach = std::max(0.0, n.dot(velocityAt(sideA, c.a, c.point) - velocityAt(sideB, c.b, c.point)));
             if (-depth > settings_.speculativeDistance * rsum + approach * dt) continue;
           }
