@@ -1,5 +1,7 @@
 #include "volpar/collision/normal_estimation.hpp"
 
+#include "volpar/collision/rounded_core.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -37,6 +39,10 @@ constexpr double kFacetTurn = 0.5;      // cos 60 degrees: past a face's edge th
 constexpr double kFacetWidth = 2.0;     // a strip narrower than this (spacings, standard deviation) that the
                                         // surface beyond turns from by less is a facet of a curved surface
 constexpr double kOutermost = 0.5;      // a face's plane is fitted again to the outer half of its steps
+constexpr std::size_t kCurvedFewest = 12;  // particles a curved surface is fitted whole over at least
+constexpr double kCoreRms = 0.35;       // spacings (root mean square) a curved surface lies within its core's
+constexpr double kCoreTurn = 0.9063078; // cos 25 degrees: the most a core's normal turns a particle's own
+constexpr double kCoreOff = 1.0;        // spacings a particle the core takes lies within its surface
 
 /// w = c0 + c1 u + c2 v + c3 u^2 + c4 uv + c5 v^2 about `origin` in the frame (t1, t2, n), least squares.
 struct QuadricFit {
@@ -663,6 +669,57 @@ void SurfaceEstimator::joinFaces(const Neighbourhood& nb, std::vector<SurfaceEst
     e.faces = f;
     e.faceCount = static_cast<std::uint8_t>(fc);
     e.normal = mean.normalized();
+  }
+  joinCurved(nb, out);
+}
+
+void SurfaceEstimator::joinCurved(const Neighbourhood& nb, std::vector<SurfaceEstimate>& out) {
+  const std::size_t n = nb.positions.size();
+  // a particle of a curved surface: on no flat face, on no edge or corner, its own fit not planar
+  const auto curved = [&](std::uint32_t i) {
+    const SurfaceEstimate& e = out[i];
+    return raw(nb, i).kind == kVolume && !opened(nb, i) && regionCount_[i] == 0 && e.faceCount == 1 &&
+           !(e.flags & kParticleSharp) && !fit(nb, i).planar && !e.normal.isZero();
+  };
+  nextMark();
+  for (std::uint32_t seed = 0; seed < n; ++seed) {
+    if (mark_[seed] == markStamp_ || !curved(seed)) continue;
+    // the connected curved surface through the seed
+    members_.clear();
+    members_.push_back(seed);
+    mark_[seed] = markStamp_;
+    double spacing = 0.0;
+    for (std::size_t k = 0; k < members_.size(); ++k) {
+      spacing += raw(nb, members_[k]).spacing;
+      for (std::uint32_t e = nb.start[members_[k]]; e < nb.start[members_[k] + 1]; ++e) {
+        const std::uint32_t j = nb.neighbours[e].value;
+        if (mark_[j] == markStamp_ || !curved(j)) continue;
+        mark_[j] = markStamp_;
+        members_.push_back(j);
+      }
+    }
+    if (members_.size() < kCurvedFewest) continue;
+    spacing /= static_cast<double>(members_.size());
+    curvedPoints_.clear();
+    curvedNormals_.clear();
+    for (const std::uint32_t q : members_) {
+      curvedPoints_.push_back(nb.positions[q]);
+      curvedNormals_.push_back(out[q].normal);
+    }
+    const RoundedCore core = fitRoundedCore(curvedPoints_, curvedNormals_, kCoreRms * spacing);
+    if (core.kind == RoundedCore::Kind::None) continue;
+    // a hollow (the surface curves round the outside of its core) takes the normals towards the core
+    double agree = 0.0;
+    for (std::size_t k = 0; k < members_.size(); ++k) agree += core.normalAt(curvedPoints_[k]).dot(curvedNormals_[k]);
+    const double sign = agree >= 0.0 ? 1.0 : -1.0;
+    for (std::size_t k = 0; k < members_.size(); ++k) {
+      const Vec3 nk = sign * core.normalAt(curvedPoints_[k]);
+      // (a particle the core does not take: off its surface, or its own normal far from the core's)
+      if (!(std::abs(core.distance(curvedPoints_[k])) <= kCoreOff * spacing) || !(nk.dot(curvedNormals_[k]) > kCoreTurn)) continue;
+      SurfaceEstimate& e = out[members_[k]];
+      e.normal = nk;
+      e.faces[0] = nk;
+    }
   }
 }
 

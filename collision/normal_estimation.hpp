@@ -26,6 +26,10 @@
 // surface particles within 0.6 spacings of their plane, refitted until they settle, and kept unless they
 // are lattice facets of a curved surface (narrow strips past which the surface turns by under 60 degrees);
 // a particle on one such face takes its plane, on two it lies on an edge, on three or more on a corner.
+// The curved surface particles left between the faces, each connected set of them, are then fitted whole
+// as one rounded core (a sphere, a cylinder's side or a capsule; rounded_core.hpp) where one fits them
+// within 0.35 spacings (rms): a particle on it takes the direction from the core, where a local fit follows
+// the flat runs of steps a lattice outlines a curve with.
 // A crack face is made of the particles that lost a connector: a crack particle's plane is fitted to them
 // alone, within four connectors along them on its side (a staircase across the lattice counts as a plane
 // within 0.3 spacings rms), and where the crack meets older faces their tight clusters join it as the
@@ -108,6 +112,11 @@ class SurfaceEstimator {
   /// its plane) where it is one, false where the particles are no face (too few, not flat, a lattice facet
   /// of a curved surface).
   bool growFace(const Neighbourhood& nb, std::uint32_t seed, Vec3& normal);
+  /// After the flat faces: each connected curved surface that is one rounded core (a sphere, a cylinder's
+  /// side, a capsule) takes its normals from the core fitted to the whole of it.
+  void joinCurved(const Neighbourhood& nb, std::vector<SurfaceEstimate>& out);
+
+  std::vector<Vec3> curvedPoints_, curvedNormals_;
 
   std::vector<std::uint32_t> regionOf_, members_, beyond_, beyondMark_;
   std::vector<std::uint8_t> regionCount_;

@@ -47,13 +47,11 @@ struct Bounds {
 };
 
 /// The pairs and variants that do not meet the targets yet, at their measured level (2000 poses) rounded up:
-/// estimated normals on a coarse capsule and cylinder (5 to 10
-/// particles across, whose lattice steps the fitted quadrics and curved cores do not fully smooth, most at
-/// the rim and where a hemisphere meets the side); HCP edges and corners, whose outermost particles stand
-/// back from the solid's edge (an HCP plate's planes do not all separate); estimated normals on a tilted
-/// mesh box five to eight particles a side, whose faces' planes are fitted to their steps within a degree and
-/// whose edges and corners are a band of steps; and the few planes on curved or stepped bodies that do not
-/// separate every particle.
+/// HCP edges and corners, whose outermost particles stand back from the solid's edge (an HCP plate's planes
+/// do not all separate); estimated normals on a tilted mesh box five to eight particles a side, whose faces
+/// the particles fix only to within about a degree (the same particles fill the mesh turned anywhere from
+/// -0.2 to +0.8 degrees about z) and whose edges and corners are a band of steps; and the few planes on
+/// curved or stepped bodies that do not separate every particle.
 struct Shortfall {
   const char* pair;
   const char* variant;
@@ -62,10 +60,10 @@ struct Shortfall {
 const Shortfall kShortfalls[] = {
     {"box_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.01}},
     {"capsule_box", "shape", {0.5, 2.0, 2.0, 8.0, 0.002}},
-    {"capsule_box", "estimated", {0.5, 4.5, 2.5, 8.0, 0.002}},
+    {"capsule_box", "estimated", {0.5, 2.0, 2.0, 8.0, 0.003}},
     {"capsule_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.01}},
     {"cylinder_box", "shape", {0.5, 2.0, 2.0, 8.0, 0.002}},
-    {"cylinder_box", "estimated", {0.5, 3.0, 2.0, 8.0, 0.002}},
+    {"cylinder_box", "estimated", {0.5, 2.0, 2.0, 8.0, 0.002}},
     {"cylinder_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.01}},
     {"mesh_box", "shape", {0.5, 2.0, 2.0, 8.0, 0.003}},
     {"mesh_box", "estimated", {1.0, 3.0, 2.0, 10.0, 0.003}},
