@@ -49,9 +49,9 @@ struct Bounds {
 /// The pairs and variants that do not meet the targets yet, at their measured level (2000 poses) rounded up:
 /// HCP edges and corners, whose outermost particles stand back from the solid's edge (an HCP plate's planes
 /// do not all separate); estimated normals on a tilted mesh box five to eight particles a side, whose faces
-/// the particles fix only to within about a degree (the same particles fill the mesh turned anywhere from
-/// -0.2 to +0.8 degrees about z) and whose edges and corners are a band of steps; and the few planes on
-/// curved or stepped bodies that do not separate every particle.
+/// the particles fix only to within a few degrees (NormalEstimation.TiltedMeshFacesAreFixedOnlyWithinTheLattice)
+/// and whose edges and corners are a band of steps; and the few planes on curved or stepped bodies that do
+/// not separate every particle.
 struct Shortfall {
   const char* pair;
   const char* variant;
