@@ -15,6 +15,7 @@ constexpr double kSideLean = 0.42;      // sin 25 degrees: a normal leaning less
 constexpr std::size_t kFewest = 6;      // particles a sphere, circle or cap is fitted to at least
 constexpr double kFirstTurn = 0.035;    // the axis search's first step [rad], about 2 degrees
 constexpr double kLastTurn = 1e-4;      // ... and its last
+constexpr int kMostMoves = 200;         // ... and the most steps it takes (each lowers the fit's rms)
 constexpr double kCapSlack = 0.15;      // share of the tolerance a cap's radius may differ from the side's by
                                         // (a lattice outlines a sphere and a cylinder at slightly different depths)
 
@@ -96,7 +97,8 @@ Circle fitCylinder(std::span<const Vec3> points, const Vec3& axis) {
 Circle searchAxis(std::span<const Vec3> points, Vec3& axis) {
   Circle best = fitCylinder(points, axis);
   if (!best.ok) return best;
-  for (double step = kFirstTurn; step >= kLastTurn;) {
+  int moves = 0;
+  for (double step = kFirstTurn; step >= kLastTurn && moves < kMostMoves;) {
     const Vec3 u = axis.unitOrthogonal(), v = axis.cross(u);
     bool moved = false;
     for (const auto& [du, dv] : std::array<std::array<double, 2>, 8>{
@@ -109,7 +111,11 @@ Circle searchAxis(std::span<const Vec3> points, Vec3& axis) {
         moved = true;
       }
     }
-    if (!moved) step *= 0.5;
+    if (moved) {
+      ++moves;
+    } else {
+      step *= 0.5;
+    }
   }
   return best;
 }
