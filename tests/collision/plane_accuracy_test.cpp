@@ -46,7 +46,8 @@ struct Bounds {
   double faceMedian = 0.5, faceP95 = 2.0, otherMedian = 2.0, otherP95 = 8.0, convexShare = 0.0;
 };
 
-/// The pairs and variants that do not meet the targets yet, at their measured level (2000 poses) rounded up:
+/// The pairs and variants that do not meet the targets yet, at their measured level (2000 and 6000 poses)
+/// rounded up:
 /// HCP edges and corners, whose outermost particles stand back from the solid's edge (an HCP plate's planes
 /// do not all separate); estimated normals on a tilted mesh box five to eight particles a side, whose faces
 /// the particles fix only to within a few degrees (NormalEstimation.TiltedMeshFacesAreFixedOnlyWithinTheLattice)
@@ -66,7 +67,7 @@ const Shortfall kShortfalls[] = {
     {"cylinder_box", "estimated", {0.5, 2.0, 2.0, 8.0, 0.002}},
     {"cylinder_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.01}},
     {"mesh_box", "shape", {0.5, 2.0, 2.0, 8.0, 0.003}},
-    {"mesh_box", "estimated", {1.0, 3.0, 2.0, 10.0, 0.003}},
+    {"mesh_box", "estimated", {1.0, 3.0, 2.0, 11.0, 0.003}},
     {"mesh_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.01}},
     {"plate_box", "hcp", {0.5, 2.0, 2.0, 8.0, 0.01}},
 };
