@@ -708,7 +708,7 @@ void SurfaceEstimator::joinCurved(const Neighbourhood& nb, std::vector<SurfaceEs
     }
     const RoundedCore core = fitRoundedCore(curvedPoints_, curvedNormals_, kCoreRms * spacing);
     if (core.kind == RoundedCore::Kind::None) continue;
-    // a hollow (the surface curves round the outside of its core) takes the normals towards the core
+    // a hollow (a surface whose outside faces its core, as a bowl's inside does) takes the normals towards it
     double agree = 0.0;
     for (std::size_t k = 0; k < members_.size(); ++k) agree += core.normalAt(curvedPoints_[k]).dot(curvedNormals_[k]);
     const double sign = agree >= 0.0 ? 1.0 : -1.0;
