@@ -19,83 +19,70 @@ constexpr int kMostMoves = 200;         // ... and the most steps it takes (each
 constexpr double kCapSlack = 0.15;      // share of the tolerance a cap's radius may differ from the side's by
                                         // (a lattice outlines a sphere and a cylinder at slightly different depths)
 
-struct Circle {
+/// A sphere or a circle fitted to points: its centre and radius, and the points' rms distance from it.
+template <int D>
+struct RoundFit {
   bool ok = false;
-  Vec3 centre = Vec3::Zero();
+  Eigen::Matrix<double, D, 1> centre = Eigen::Matrix<double, D, 1>::Zero();
   double radius = 0.0, rms = 0.0;
 };
 
-/// The sphere through the points (algebraic least squares about their mean: |y|^2 = 2 c . y + k).
-Circle fitSphere(std::span<const Vec3> points) {
-  Circle out;
-  if (points.size() < kFewest) return out;
-  Vec3 mean = Vec3::Zero();
-  for (const Vec3& x : points) mean += x;
-  mean /= static_cast<double>(points.size());
-  Eigen::Matrix4d a = Eigen::Matrix4d::Zero();
-  Eigen::Vector4d b = Eigen::Vector4d::Zero();
-  for (const Vec3& x : points) {
-    const Vec3 y = x - mean;
-    const Eigen::Vector4d row(2.0 * y.x(), 2.0 * y.y(), 2.0 * y.z(), 1.0);
+/// The sphere (D = 3) or circle (D = 2) through the n points coords(i), algebraic least squares about their
+/// mean m: |y|^2 = 2 c . y + k with y = p - m, centre m + c, radius sqrt(k + |c|^2).
+template <int D, class Coords>
+RoundFit<D> algebraicFit(std::size_t n, const Coords& coords) {
+  using VecD = Eigen::Matrix<double, D, 1>;
+  using VecK = Eigen::Matrix<double, D + 1, 1>;
+  using MatK = Eigen::Matrix<double, D + 1, D + 1>;
+  RoundFit<D> out;
+  if (n < kFewest) return out;
+  VecD mean = VecD::Zero();
+  for (std::size_t i = 0; i < n; ++i) mean += coords(i);
+  mean /= static_cast<double>(n);
+  MatK a = MatK::Zero();
+  VecK b = VecK::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const VecD y = coords(i) - mean;
+    VecK row;
+    row << 2.0 * y, 1.0;
     a += row * row.transpose();
     b += row * y.squaredNorm();
   }
-  const Eigen::LDLT<Eigen::Matrix4d> ldlt(a);
+  const Eigen::LDLT<MatK> ldlt(a);
   if (ldlt.info() != Eigen::Success) return out;
-  const Eigen::Vector4d s = ldlt.solve(b);
-  const Vec3 c = s.head<3>();
-  const double r2 = s[3] + c.squaredNorm();
+  const VecK s = ldlt.solve(b);
+  const VecD c = s.template head<D>();
+  const double r2 = s[D] + c.squaredNorm();
   if (!(r2 > 0.0) || !s.allFinite()) return out;
   out.centre = mean + c;
   out.radius = std::sqrt(r2);
   double sum = 0.0;
-  for (const Vec3& x : points) {
-    const double e = (x - out.centre).norm() - out.radius;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double e = (coords(i) - out.centre).norm() - out.radius;
     sum += e * e;
   }
-  out.rms = std::sqrt(sum / static_cast<double>(points.size()));
+  out.rms = std::sqrt(sum / static_cast<double>(n));
   out.ok = true;
   return out;
 }
 
-/// The cylinder along `axis` through the points: the circle of their projections across it.
-Circle fitCylinder(std::span<const Vec3> points, const Vec3& axis) {
-  Circle out;
-  if (points.size() < kFewest) return out;
+/// The sphere through the points.
+RoundFit<3> fitSphere(std::span<const Vec3> points) {
+  return algebraicFit<3>(points.size(), [&](std::size_t i) { return points[i]; });
+}
+
+/// The cylinder along `axis` through the points: the circle of their projections across it (its centre
+/// the point of the axis in the plane through the origin across it).
+RoundFit<3> fitCylinder(std::span<const Vec3> points, const Vec3& axis) {
   const Vec3 u = axis.unitOrthogonal(), v = axis.cross(u);
-  Vec3 mean = Vec3::Zero();
-  for (const Vec3& x : points) mean += x;
-  mean /= static_cast<double>(points.size());
-  Mat3 a = Mat3::Zero();
-  Vec3 b = Vec3::Zero();
-  for (const Vec3& x : points) {
-    const Vec3 y = x - mean;
-    const double p = y.dot(u), q = y.dot(v);
-    const Vec3 row(2.0 * p, 2.0 * q, 1.0);
-    a += row * row.transpose();
-    b += row * (p * p + q * q);
-  }
-  const Eigen::LDLT<Mat3> ldlt(a);
-  if (ldlt.info() != Eigen::Success) return out;
-  const Vec3 s = ldlt.solve(b);
-  const double r2 = s[2] + s[0] * s[0] + s[1] * s[1];
-  if (!(r2 > 0.0) || !s.allFinite()) return out;
-  out.centre = mean + s[0] * u + s[1] * v;
-  out.radius = std::sqrt(r2);
-  double sum = 0.0;
-  for (const Vec3& x : points) {
-    const Vec3 y = x - out.centre;
-    const double e = (y - y.dot(axis) * axis).norm() - out.radius;
-    sum += e * e;
-  }
-  out.rms = std::sqrt(sum / static_cast<double>(points.size()));
-  out.ok = true;
-  return out;
+  const RoundFit<2> circle =
+      algebraicFit<2>(points.size(), [&](std::size_t i) { return Eigen::Vector2d(points[i].dot(u), points[i].dot(v)); });
+  return {circle.ok, circle.centre.x() * u + circle.centre.y() * v, circle.radius, circle.rms};
 }
 
 /// The axis near `axis` whose cylinder fits the points best (a pattern search over its tilt), and that fit.
-Circle searchAxis(std::span<const Vec3> points, Vec3& axis) {
-  Circle best = fitCylinder(points, axis);
+RoundFit<3> searchAxis(std::span<const Vec3> points, Vec3& axis) {
+  RoundFit<3> best = fitCylinder(points, axis);
   if (!best.ok) return best;
   int moves = 0;
   for (double step = kFirstTurn; step >= kLastTurn && moves < kMostMoves;) {
@@ -104,7 +91,7 @@ Circle searchAxis(std::span<const Vec3> points, Vec3& axis) {
     for (const auto& [du, dv] : std::array<std::array<double, 2>, 8>{
              {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}}}) {
       const Vec3 tried = (axis + step * (du * u + dv * v)).normalized();
-      const Circle c = fitCylinder(points, tried);
+      const RoundFit<3> c = fitCylinder(points, tried);
       if (c.ok && c.rms < best.rms) {
         best = c;
         axis = tried;
@@ -182,7 +169,7 @@ RoundedCore fitRoundedCore(std::span<const Vec3> points, std::span<const Vec3> n
   RoundedCore out;
   if (points.size() < 2 * kFewest || normals.size() != points.size()) return out;
   // a sphere about one point
-  const Circle sphere = fitSphere(points);
+  const RoundFit<3> sphere = fitSphere(points);
   if (sphere.ok && sphere.rms <= tolerance) {
     out.kind = RoundedCore::Kind::Point;
     out.centre = sphere.centre;
@@ -202,7 +189,7 @@ RoundedCore fitRoundedCore(std::span<const Vec3> points, std::span<const Vec3> n
     for (std::size_t i = 0; i < points.size(); ++i) (std::abs(normals[i].dot(axis)) < kSideLean ? side : rest).push_back(points[i]);
   };
   split();
-  Circle cylinder = searchAxis(side, axis);
+  RoundFit<3> cylinder = searchAxis(side, axis);
   if (cylinder.ok) {
     split();  // (the side again about the fitted axis)
     cylinder = searchAxis(side, axis);
