@@ -63,7 +63,11 @@ void PatchBuilder::build(const NarrowPhaseInput& in, const ContactSet& set, cons
   // seeds: the deepest contacts first (ties: the contacts' order)
   seeds_.resize(m);
   std::iota(seeds_.begin(), seeds_.end(), 0u);
-  std::stable_sort(seeds_.begin(), seeds_.end(), [&](std::uint32_t x, std::uint32_t y) { return c[x].depth > c[y].depth; });
+  // (ties in the contacts' order: a sort that keeps equal elements in place would borrow a buffer from the
+  // heap every time, and the step allocates nothing)
+  std::sort(seeds_.begin(), seeds_.end(), [&](std::uint32_t x, std::uint32_t y) {
+    return c[x].depth > c[y].depth || (!(c[y].depth > c[x].depth) && x < y);
+  });
   if (self) {
     byParticle_.clear();
     for (std::uint32_t i = 0; i < m; ++i) {
@@ -205,7 +209,9 @@ std::size_t PatchBuilder::split(const NarrowPhaseInput& in, const ContactSet& se
     keys_[k] = turning ? (directions_[k] - mean).dot(axis) : (set.contacts[idx[k]].point - centre).dot(axis);
     scratch_[k] = static_cast<std::uint32_t>(k);
   }
-  std::stable_sort(scratch_.begin(), scratch_.end(), [&](std::uint32_t x, std::uint32_t y) { return keys_[x] < keys_[y]; });
+  std::sort(scratch_.begin(), scratch_.end(), [&](std::uint32_t x, std::uint32_t y) {
+    return keys_[x] < keys_[y] || (!(keys_[y] < keys_[x]) && x < y);  // (ties in order, without a heap buffer)
+  });
   std::vector<std::uint32_t>& sorted = seeds_;  // (scratch)
   sorted.resize(n);
   for (std::size_t k = 0; k < n; ++k) sorted[k] = idx[scratch_[k]];
