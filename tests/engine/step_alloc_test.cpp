@@ -1,44 +1,12 @@
 // A step allocates nothing once the world's buffers have grown to the scene's needs. A program of its own:
-// it replaces the global operators new and delete to count every allocation made while a step runs.
+// it counts every allocation (allocation_counter.hpp), here those made while a step runs.
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
-#include <string>
 #include <vector>
 
+#include "tests/support/allocation_counter.hpp"
 #include "volpar/engine/scene/scene_build.hpp"
 #include "volpar/engine/scene/scene_loader.hpp"
-
-// Allocations are counted only while `gCounting` is set (the scene loader and the test's own bookkeeping
-// allocate freely).
-namespace {
-std::atomic<long> gAllocations{0};
-std::atomic<bool> gCounting{false};
-void* allocate(std::size_t size, std::size_t alignment) {
-  if (gCounting.load(std::memory_order_relaxed)) gAllocations.fetch_add(1, std::memory_order_relaxed);
-  if (size == 0) size = 1;
-  void* p = alignment <= alignof(std::max_align_t)
-                ? std::malloc(size)
-                : std::aligned_alloc(alignment, (size + alignment - 1) / alignment * alignment);
-  if (!p) throw std::bad_alloc();
-  return p;
-}
-}  // namespace
-
-void* operator new(std::size_t size) { return allocate(size, 0); }
-void* operator new[](std::size_t size) { return allocate(size, 0); }
-void* operator new(std::size_t size, std::align_val_t a) { return allocate(size, static_cast<std::size_t>(a)); }
-void* operator new[](std::size_t size, std::align_val_t a) { return allocate(size, static_cast<std::size_t>(a)); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 namespace volpar {
 namespace {
@@ -60,11 +28,9 @@ TEST(Step, AllocatesNothingOnceItsBuffersHaveGrown) {
     std::vector<long> perStep(kSteps, 0);
     std::size_t fresh = 0;
     for (int i = 0; i < kSteps; ++i) {
-      const long before = gAllocations.load();
-      gCounting = true;
+      const long before = test::allocationCount();
       world.step();
-      gCounting = false;
-      perStep[static_cast<std::size_t>(i)] = gAllocations.load() - before;
+      perStep[static_cast<std::size_t>(i)] = test::allocationCount() - before;
       fresh += world.stats().patches - world.stats().patchesReused;
     }
     long total = 0;

@@ -1,42 +1,11 @@
-// Handing work to the thread pool allocates nothing. A program of its own: it replaces the global
-// operators new and delete to count every allocation, which must not meet libraries that allocate
-// through another allocator (the sanitizer build's, in the scene loader's).
+// Handing work to the thread pool allocates nothing. A program of its own: it counts every allocation
+// (allocation_counter.hpp).
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
 #include <vector>
 
+#include "tests/support/allocation_counter.hpp"
 #include "volpar/engine/core/thread_pool.hpp"
-
-// Every allocation of this test program is counted (the replaceable global operators new and delete, on
-// top of malloc and free), so that a test can check that a piece of code allocates nothing.
-namespace {
-std::atomic<long> gAllocations{0};
-void* allocate(std::size_t size, std::size_t alignment) {
-  gAllocations.fetch_add(1, std::memory_order_relaxed);
-  if (size == 0) size = 1;
-  void* p = alignment <= alignof(std::max_align_t)
-                ? std::malloc(size)
-                : std::aligned_alloc(alignment, (size + alignment - 1) / alignment * alignment);
-  if (!p) throw std::bad_alloc();
-  return p;
-}
-}  // namespace
-
-void* operator new(std::size_t size) { return allocate(size, 0); }
-void* operator new[](std::size_t size) { return allocate(size, 0); }
-void* operator new(std::size_t size, std::align_val_t a) { return allocate(size, static_cast<std::size_t>(a)); }
-void* operator new[](std::size_t size, std::align_val_t a) { return allocate(size, static_cast<std::size_t>(a)); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 namespace volpar {
 namespace {
@@ -58,9 +27,9 @@ TEST(ThreadPool, HandsOutWorkWithoutAllocating) {
     pool.runChunks(out.size(), ranges);
   };
   round();  // (anything made on first use is made here)
-  const long before = gAllocations.load();
+  const long before = test::allocationCount();
   for (int r = 0; r < 100; ++r) round();
-  EXPECT_EQ(gAllocations.load() - before, 0);
+  EXPECT_EQ(test::allocationCount() - before, 0);
   for (std::size_t i = 0; i < out.size(); ++i) ASSERT_EQ(out[i], 2.0 * static_cast<double>(i) + 1.0);
 }
 
