@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -91,40 +92,110 @@ inline std::uint64_t hashSlot(std::uint64_t key, int bits) { return (key * 0x9E3
 
 }  // namespace
 
+void ContactSolver::bisect(std::span<const SolverBody> bodies, std::size_t begin, std::size_t end, int level,
+                           std::size_t node) {
+  if (level == depth_) {
+    leafStart_[node] = begin;
+    for (std::size_t k = begin; k < end; ++k) leafOf_[byX_[k].second] = static_cast<std::uint32_t>(node);
+    return;
+  }
+  // the longest side of the node's bodies' bounds (the first of equal sides)
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (std::size_t k = begin; k < end; ++k) {
+    const Vec3& x = bodies[byX_[k].second].position;
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  int axis = 0;
+  if (end > begin) {
+    const Vec3 side = hi - lo;
+    if (side.y() > side[axis]) axis = 1;
+    if (side.z() > side[axis]) axis = 2;
+  }
+  for (std::size_t k = begin; k < end; ++k) byX_[k].first = bodies[byX_[k].second].position[axis];
+  // split at the median (ties by index: the halves are the same sets whatever the order before)
+  const std::size_t mid = begin + (end - begin) / 2;
+  if (end - begin >= 2)
+    std::nth_element(byX_.begin() + static_cast<std::ptrdiff_t>(begin), byX_.begin() + static_cast<std::ptrdiff_t>(mid),
+                     byX_.begin() + static_cast<std::ptrdiff_t>(end));
+  bisect(bodies, begin, mid, level + 1, 2 * node);
+  bisect(bodies, mid, end, level + 1, 2 * node + 1);
+}
+
+int ContactSolver::depthFor(std::size_t bodies, int bodiesPerLeaf) {
+  const auto perLeaf = static_cast<std::size_t>(std::max(bodiesPerLeaf, 1));
+  int depth = 1;
+  while (depth < kMaxDepth && (bodies >> (depth + 1)) >= perLeaf) ++depth;
+  return depth;
+}
+
 void ContactSolver::order(std::span<const SolverBody> bodies) {
   const std::size_t nb = bodies.size(), np = ab_.size();
-  // the two halves: bodies sorted by x (ties by index), split at the median
+  const std::size_t leaves = std::size_t{1} << depth_;
+  levelStart_.resize(static_cast<std::size_t>(depth_) + 1);
+  levelStart_[static_cast<std::size_t>(depth_)] = 0;
+  for (int l = depth_; l > 0; --l)
+    levelStart_[static_cast<std::size_t>(l) - 1] = levelStart_[static_cast<std::size_t>(l)] + (std::size_t{1} << l);
+  const std::size_t nParts = partCount();
+  // the tree: the bodies bisected down to the leaves, byX_ then holding them leaf by leaf
   byX_.resize(nb);
-  for (std::size_t i = 0; i < nb; ++i) byX_[i] = {bodies[i].position.x(), static_cast<std::uint32_t>(i)};
-  const std::size_t half = nb / 2;
-  if (nb > 0) std::nth_element(byX_.begin(), byX_.begin() + static_cast<std::ptrdiff_t>(half), byX_.end());
-  half_ = half;
-  side_.resize(nb);
-  for (std::size_t i = 0; i < nb; ++i) side_[byX_[i].second] = i < half ? 0 : 1;
-  // each half's velocities contiguous, a cache line apart (two threads must not share a line): the left
-  // half's bodies, its fixed entry, a gap, the right half's, its fixed entry, a gap, the joining points'
-  // fixed entry
+  for (std::size_t i = 0; i < nb; ++i) byX_[i] = {0.0, static_cast<std::uint32_t>(i)};
+  leafOf_.resize(nb);
+  leafStart_.resize(leaves + 1);
+  bisect(bodies, 0, nb, 0, 0);
+  leafStart_[leaves] = nb;
+  // each leaf's velocities contiguous (in the bodies' order), then its fixed entry and a gap (threads solving
+  // different nodes must not share a cache line); then every other node's fixed entry, each with a gap
   constexpr std::size_t kGap = 8;
+  fixedSlot_.resize(nParts);
+  slotBegin_.resize(nParts);
+  slotEnd_.resize(nParts);
+  leafNext_.resize(leaves);
+  std::size_t at = 0;
+  for (std::size_t k = 0; k < leaves; ++k) {
+    slotBegin_[k] = leafNext_[k] = static_cast<std::uint32_t>(at);
+    at += leafStart_[k + 1] - leafStart_[k];
+    fixedSlot_[k] = static_cast<std::uint32_t>(at);
+    slotEnd_[k] = static_cast<std::uint32_t>(at + 1);
+    at += 1 + kGap;
+  }
+  for (int l = depth_ - 1; l >= 0; --l) {
+    for (std::size_t k = 0; k < (std::size_t{1} << l); ++k) {
+      const std::size_t p = levelStart(l) + k, shift = static_cast<std::size_t>(depth_ - l);
+      slotBegin_[p] = slotBegin_[k << shift];
+      slotEnd_[p] = slotEnd_[((k + 1) << shift) - 1];
+      fixedSlot_[p] = static_cast<std::uint32_t>(at);
+      at += 1 + kGap;
+    }
+  }
+  slots_ = at;
   slot_.resize(nb);
-  std::size_t left = 0, right = half + 1 + kGap;
-  for (std::size_t i = 0; i < nb; ++i) slot_[i] = static_cast<std::uint32_t>(side_[i] == 0 ? left++ : right++);
-  fixedSlot_ = {static_cast<std::uint32_t>(half), static_cast<std::uint32_t>(right),
-                static_cast<std::uint32_t>(right + 1 + kGap)};
-  slots_ = right + 2 + kGap;
-  // a point belongs to the half of its bodies (the fixed side belongs to both), else it joins the halves
+  for (std::size_t i = 0; i < nb; ++i) slot_[i] = leafNext_[leafOf_[i]]++;
+  isFixed_.assign(slots_, 0);
+  for (const std::uint32_t s : fixedSlot_) isFixed_[s] = 1;
+  used_.resize(static_cast<std::size_t>(depth_) + 1);
+  for (auto& u : used_) u.resize(slots_);
+  // a point belongs to the leaf of its body (the fixed side belongs to every leaf), else to the smallest
+  // node holding both its bodies
   const auto partOf = [&](const std::pair<std::uint32_t, std::uint32_t>& p) -> std::size_t {
-    if (p.first == kFixed) return side_[p.second];
-    if (p.second == kFixed) return side_[p.first];
-    return side_[p.first] == side_[p.second] ? side_[p.first] : 2;
+    if (p.first == kFixed) return leafOf_[p.second];
+    if (p.second == kFixed) return leafOf_[p.first];
+    std::uint32_t ka = leafOf_[p.first], kb = leafOf_[p.second];
+    int level = depth_;
+    while (ka != kb) ka >>= 1, kb >>= 1, --level;
+    return levelStart(level) + ka;
   };
-  std::array<std::size_t, 3> count{};
-  for (const auto& p : ab_) ++count[partOf(p)];
-  parts_ = {0, count[0], count[0] + count[1], np};
-  // (a part's batches hold its rows and at most three padding lanes per colour or uncoloured row)
-  for (std::size_t part = 0; part < 3; ++part) posBase_[part + 1] = posBase_[part] + 4 * count[part] + 3 * 64;
-  std::array<std::size_t, 3> next{parts_[0], parts_[1], parts_[2]};
+  parts_.assign(nParts + 1, 0);
+  for (const auto& p : ab_) ++parts_[partOf(p) + 1];
+  for (std::size_t part = 0; part < nParts; ++part) parts_[part + 1] += parts_[part];
+  // (a part's batches hold at most four lanes per row: one, plus at most three of padding per colour or
+  // three beside an uncoloured row)
+  posBase_.resize(nParts + 1);
+  posBase_[0] = 0;
+  for (std::size_t part = 0; part < nParts; ++part) posBase_[part + 1] = posBase_[part] + 4 * (parts_[part + 1] - parts_[part]);
+  partNext_.assign(parts_.begin(), parts_.end() - 1);
   order_.resize(np);
-  for (std::size_t i = 0; i < np; ++i) order_[next[partOf(ab_[i])]++] = static_cast<std::uint32_t>(i);
+  for (std::size_t i = 0; i < np; ++i) order_[partNext_[partOf(ab_[i])]++] = static_cast<std::uint32_t>(i);
   // (the points' ranks within their body pair, for spread(), which reorders from scratch_ into order_)
   rank_.resize(np);
   for (std::size_t i = 0; i < np; ++i) rank_[i] = i > 0 && ab_[i] == ab_[i - 1] ? rank_[i - 1] + 1 : 0;
@@ -151,7 +222,10 @@ void ContactSolver::colour(std::size_t part) {
   const auto begin = static_cast<std::uint32_t>(parts_[part]);
   const auto count = static_cast<std::uint32_t>(parts_[part + 1] - parts_[part]);
   const std::uint32_t fixed = fixedSlot_[part];
-  pb.used.assign(slots_, 0);
+  // (the colours taken, per slot: the node's own slots in its level's table, which no other node of the
+  // level touches)
+  std::vector<std::uint64_t>& used = used_[static_cast<std::size_t>(levelOf(part))];
+  std::fill(used.begin() + slotBegin_[part], used.begin() + slotEnd_[part], 0);
   pb.colour.resize(count);
   // each row's slots (the fixed side: the part's own entry), then a greedy colouring in row order: the
   // first colour neither body has taken (the fixed side takes none)
@@ -161,7 +235,7 @@ void ContactSolver::colour(std::size_t part) {
     const auto [ia, ib] = ab_[order_[begin + i]];
     const std::uint32_t a = ia == kFixed ? fixed : slot_[ia], b = ib == kFixed ? fixed : slot_[ib];
     rowSlots_[begin + i] = {a, b};
-    const std::uint64_t taken = (a == fixed ? 0 : pb.used[a]) | (b == fixed ? 0 : pb.used[b]);
+    const std::uint64_t taken = (a == fixed ? 0 : used[a]) | (b == fixed ? 0 : used[b]);
     if (taken == ~std::uint64_t{0}) {
       pb.colour[i] = 64;
       ++rest;
@@ -170,8 +244,8 @@ void ContactSolver::colour(std::size_t part) {
     const auto c = static_cast<std::uint8_t>(std::countr_one(taken));
     pb.colour[i] = c;
     ++perColour[c];
-    if (a != fixed) pb.used[a] |= std::uint64_t{1} << c;
-    if (b != fixed) pb.used[b] |= std::uint64_t{1} << c;
+    if (a != fixed) used[a] |= std::uint64_t{1} << c;
+    if (b != fixed) used[b] |= std::uint64_t{1} << c;
   }
   // rows by colour (in row order within a colour), four to a batch, a colour's last batch padded; then
   // the uncoloured rows in row order, one to a batch
@@ -334,10 +408,10 @@ void ContactSolver::remember() {
   // a key can repeat when two points share a particle pair (raw normals never, planes never): the first
   // in solving order is found
   std::size_t size = 16;
-  while (size < 2 * (parts_[3] + 1)) size *= 2;
+  while (size < 2 * (parts_.back() + 1)) size *= 2;
   table_.assign(size, kEmpty);
   tableBits_ = std::countr_zero(size);
-  for (std::size_t part = 0; part < 3; ++part) {
+  for (std::size_t part = 0; part < partCount(); ++part) {
     const std::vector<std::uint32_t>& sorted = batches_[part].sorted;
     for (std::size_t j = 0; j < sorted.size(); ++j) {
       if (sorted[j] == kNoRow) continue;
@@ -356,9 +430,20 @@ void ContactSolver::remember() {
 void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactPointInput> points, double dt,
                           ThreadPool* pool) {
   const std::size_t nb = bodies.size(), np = points.size();
-  const int workers = pool && np > 0 && pool->worthSharing(np, 1024) ? 2 : 1;
+  depth_ = depthFor(nb, settings_.bodiesPerLeaf);
+  const std::size_t leaves = std::size_t{1} << depth_;
+  // (threads take whole nodes: at most one per leaf)
+  const int workers = pool && np > 0 && pool->worthSharing(np, 1024)
+                          ? static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(pool->workers()), leaves))
+                          : 1;
   barrier_.reset(workers);
   ab_.resize(np);
+  // calls f(part) for the nodes of a level that `worker` solves
+  const auto forMine = [&](int worker, int level, const auto& f) {
+    const std::size_t n = std::size_t{1} << level;
+    for (std::size_t k = 0; k < n; ++k)
+      if (mine(worker, workers, k, n)) f(levelStart(level) + k);
+  };
   const auto setUp = [&](int worker) {
     // the points' bodies, compact (each thread reads its share of the points once; the ordering then
     // works in the cache)
@@ -374,15 +459,20 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       dv_.resize(slots_);
       dw_.resize(slots_);
       rowSlots_.resize(np);
-      keys_.resize(posBase_[3]);
+      keys_.resize(posBase_.back());
       impulses_.resize(np);
-      nextCache_.resize(posBase_[3]);
+      nextCache_.resize(posBase_.back());
+      batches_.resize(partCount());
+      rankStart_.resize(partCount());
+      started_.assign(partCount(), 0);
+      normalSum_.assign(partCount(), 0.0);
+      for (auto& m : moved_) m.assign(partCount(), 0);
     }
     barrier_.wait();
-    // each half's velocities in their slots and its points spread, by its own thread; each part's fixed
-    // side has an entry of its own, always zero
-    const auto load = [&](std::size_t side) {
-      for (std::size_t k = side == 0 ? 0 : half_; k < (side == 0 ? half_ : nb); ++k) {
+    // each leaf's velocities in their slots, by the thread solving it; each part's fixed side has an entry
+    // of its own, always zero; each part's points spread by its thread
+    forMine(worker, depth_, [&](std::size_t leaf) {
+      for (std::size_t k = leafStart_[leaf]; k < leafStart_[leaf + 1]; ++k) {
         const std::uint32_t i = byX_[k].second, s = slot_[i];
         v_[s] = narrow(bodies[i].v);
         w_[s] = narrow(bodies[i].w);
@@ -391,20 +481,13 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
         dv_[s] = bodies[i].v;
         dw_[s] = bodies[i].w;
       }
-      const std::uint32_t s = fixedSlot_[side];
-      v_[s] = w_[s] = pv_[s] = pw_[s] = V4::Zero();
-      spread(side);
-    };
-    if (workers == 1) {
-      load(0);
-      load(1);
-    } else {
-      load(static_cast<std::size_t>(worker));
-    }
-    if (worker == 0) {
-      const std::uint32_t s = fixedSlot_[2];
-      v_[s] = w_[s] = pv_[s] = pw_[s] = V4::Zero();
-      spread(2);
+    });
+    for (int l = depth_; l >= 0; --l) {
+      forMine(worker, l, [&](std::size_t part) {
+        const std::uint32_t s = fixedSlot_[part];
+        v_[s] = w_[s] = pv_[s] = pw_[s] = V4::Zero();
+        spread(part);
+      });
     }
     barrier_.wait();
   };
@@ -515,7 +598,6 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   // velocities agree with these to rounding, but only these conserve momentum to double precision (and a
   // body without contacts keeps its velocity bit for bit). Run on each batch right after its last
   // velocity iteration.
-  std::array<double, 3> normalSum{};
   const auto finish = [&](std::size_t part, std::size_t j) {
     const Batch& b = batches_[part].batches[j];
     double sum = 0.0;  // (normal impulses; summed on the thread's own stack)
@@ -550,87 +632,88 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     return sum;
   };
 
-  // everything in the same order of phases, on one thread or two: prepare and warm start, the velocity
-  // iterations (the last handing the impulses back), the position iterations; in each phase the two
-  // halves, then the joining points
-  std::array<std::size_t, 3> started{};
-  // (two sets used alternately, so a thread deciding to stop never reads a flag the other has
-  // already overwritten for the next sweep)
-  std::array<std::array<std::uint8_t, 3>, 2> moved{};
-  const auto iterate = [&](int worker, std::size_t begin, std::size_t end) {
+  // everything in the same order of phases, on any number of threads: prepare and warm start, the velocity
+  // iterations (the last handing the impulses back), the position iterations; in each phase the leaves,
+  // then the nodes a level up, and so on to the root
+  const auto iterate = [&](int worker) {
     setUp(worker);
-    // the halves prepared and warm started at once (they share no body); the joining points prepared
-    // meanwhile but warm started after both halves, so every body's velocity takes the warm-starting
-    // impulses in the same order however many threads there are
-    for (std::size_t part = begin; part < end; ++part) colour(part), started[part] = prepare(part, settings_.warmStart);
-    if (worker == 0) colour(2), prepare(2, false);
+    // every part prepared at once (the leaves warm started as they go, since they share no body); the other
+    // nodes warm started after, level by level, so every body's velocity takes the warm-starting impulses in
+    // the same order however many threads there are
+    for (int l = depth_; l >= 0; --l)
+      forMine(worker, l, [&](std::size_t part) { colour(part), started_[part] = prepare(part, l == depth_ && settings_.warmStart); });
     barrier_.wait();
-    if (worker == 0 && settings_.warmStart) {
-      std::size_t count = 0;
-      for (std::size_t j = 0; j < batches_[2].batches.size(); ++j) count += warmStart(2, j);
-      started[2] = count;
+    if (settings_.warmStart) {
+      for (int l = depth_ - 1; l >= 0; --l) {
+        forMine(worker, l, [&](std::size_t part) {
+          std::size_t count = 0;
+          for (std::size_t j = 0; j < batches_[part].batches.size(); ++j) count += warmStart(part, j);
+          started_[part] = count;
+        });
+        barrier_.wait();
+      }
     }
-    barrier_.wait();
     if (worker == 0) solveHeavyIslands();
     barrier_.wait();
-    // the velocity iterations; the last one hands each batch's impulses to the bodies as it goes (the
-    // halves at once, then the joining points: every body sums its impulses in the same order)
+    // the velocity iterations; the last one hands each batch's impulses to the bodies as it goes (level by
+    // level: every body sums its impulses in the same order)
     const auto none = [](std::size_t) {};
-    std::array<double, 3> sums{};  // (each thread's own, written to normalSum once)
     for (int it = 0; it < settings_.iterations; ++it) {
       const bool last = it + 1 == settings_.iterations;
-      for (std::size_t part = begin; part < end; ++part) {
-        if (last) velocityPart(part, [&](std::size_t j) { sums[part] += finish(part, j); });
-        else velocityPart(part, none);
+      for (int l = depth_; l >= 0; --l) {
+        forMine(worker, l, [&](std::size_t part) {
+          if (last) velocityPart(part, [&](std::size_t j) { normalSum_[part] += finish(part, j); });
+          else velocityPart(part, none);
+        });
+        barrier_.wait();
       }
-      barrier_.wait();
-      if (worker == 0) {
-        if (last) velocityPart(2, [&](std::size_t j) { sums[2] += finish(2, j); });
-        else velocityPart(2, none);
-      }
-      barrier_.wait();
     }
     if (settings_.iterations <= 0) {
-      for (std::size_t part = begin; part < end; ++part)
-        for (std::size_t j = 0; j < batches_[part].batches.size(); ++j) sums[part] += finish(part, j);
-      barrier_.wait();
-      if (worker == 0)
-        for (std::size_t j = 0; j < batches_[2].batches.size(); ++j) sums[2] += finish(2, j);
-      barrier_.wait();
+      for (int l = depth_; l >= 0; --l) {
+        forMine(worker, l, [&](std::size_t part) {
+          for (std::size_t j = 0; j < batches_[part].batches.size(); ++j) normalSum_[part] += finish(part, j);
+        });
+        barrier_.wait();
+      }
     }
-    for (std::size_t part = begin; part < end; ++part) normalSum[part] = sums[part];
-    if (worker == 0) normalSum[2] = sums[2];
     // (until no point's pseudo velocity changes by more than the tolerance: the same decision on every
-    // thread, from the parts' own results)
+    // thread, from the parts' own results; two sets of flags used alternately, so a thread deciding to stop
+    // never reads a flag another has already overwritten for the next sweep)
     for (int it = 0; it < settings_.positionIterations; ++it) {
-      auto& m = moved[static_cast<std::size_t>(it & 1)];
-      for (std::size_t part = begin; part < end; ++part) m[part] = positionPart(part);
-      barrier_.wait();
-      if (worker == 0) m[2] = positionPart(2);
-      barrier_.wait();
-      if (!m[0] && !m[1] && !m[2]) break;
+      std::vector<std::uint8_t>& m = moved_[static_cast<std::size_t>(it & 1)];
+      for (int l = depth_; l >= 0; --l) {
+        forMine(worker, l, [&](std::size_t part) { m[part] = positionPart(part) ? 1 : 0; });
+        barrier_.wait();
+      }
+      if (std::none_of(m.begin(), m.end(), [](std::uint8_t x) { return x != 0; })) break;
     }
-    // the velocities and pseudo velocities back to the bodies, each half's by its thread
-    for (std::size_t k = begin == 0 ? 0 : half_; k < (end == 1 ? half_ : nb); ++k) {
-      const std::uint32_t i = byX_[k].second, s = slot_[i];
-      bodies[i].v = dv_[s];
-      bodies[i].w = dw_[s];
-      bodies[i].pv = wide(pv_[s]);
-      bodies[i].pw = wide(pw_[s]);
-    }
+    // the velocities and pseudo velocities back to the bodies, each leaf's by its thread
+    forMine(worker, depth_, [&](std::size_t leaf) {
+      for (std::size_t k = leafStart_[leaf]; k < leafStart_[leaf + 1]; ++k) {
+        const std::uint32_t i = byX_[k].second, s = slot_[i];
+        bodies[i].v = dv_[s];
+        bodies[i].w = dw_[s];
+        bodies[i].pv = wide(pv_[s]);
+        bodies[i].pw = wide(pw_[s]);
+      }
+    });
     // (this step's keys for the next step's warm start)
     if (worker == workers - 1) remember();
   };
-  if (workers == 2) {
-    // exactly two ranges of one half each, whatever the pool's size
+  if (workers > 1) {
+    // one range of nodes per worker, whatever the pool's size
     pool->run(static_cast<std::size_t>(pool->workers()), [&](int worker, std::size_t, std::size_t) {
-      if (worker < 2) iterate(worker, static_cast<std::size_t>(worker), static_cast<std::size_t>(worker) + 1);
+      if (worker < workers) iterate(worker);
     });
   } else {
-    iterate(0, 0, 2);
+    iterate(0);
   }
-  warmStarted_ = started[0] + started[1] + started[2];
-  totalNormalImpulse_ = normalSum[0] + normalSum[1] + normalSum[2];
+  warmStarted_ = 0;
+  totalNormalImpulse_ = 0.0;
+  for (std::size_t part = 0; part < partCount(); ++part) {
+    warmStarted_ += started_[part];
+    totalNormalImpulse_ += normalSum_[part];
+  }
   std::swap(cacheKeys_, keys_);  // (keys_ is rewritten by the next step's preparation)
   std::swap(cache_, nextCache_);
 }

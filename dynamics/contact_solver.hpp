@@ -14,10 +14,14 @@
 // Bodies are rigid bodies (mass, world inverse inertia) or point masses (particles of deformable bodies);
 // static bodies and planes are the fixed side (index kFixed).
 //
-// Order and threads: the bodies are split at their median x into two halves; the points within the left
-// half are solved first, then those within the right half, then those joining the halves, in every
-// iteration. The two halves share no body, so two threads can solve them at once (a spin barrier between
-// the phases) with exactly the arithmetic of one thread: the result does not depend on the thread count.
+// Order and threads: the bodies are split in two at their median along the longest side of their bounds,
+// each half again, and so on to a fixed depth (a tree of bisections whose leaves hold about
+// SolverSettings::bodiesPerLeaf bodies each; the depth depends on the number of bodies, never on the threads).
+// Each point belongs to the smallest node of the tree holding both its bodies: a leaf, or the node whose cut
+// it crosses. In every iteration the leaves' points are solved first, then those of the nodes one level up,
+// and so on to the root's. The nodes of one level share no body, so threads can solve them at once (a spin
+// barrier between the levels) with exactly the arithmetic of one thread: the result does not depend on the
+// thread count, nor on which thread (or, across machines, which process) solves which node.
 
 #include <array>
 #include <cstdint>
@@ -46,6 +50,10 @@ struct SolverSettings {
   /// ratio (a heavy box on a light one needs hundreds). 0: never.
   double heavyIslandRatio = 10.0;
   int heavyIslandRows = 128;
+  /// Bodies per leaf of the solving order's tree (see "Order and threads" above): the tree's depth is the
+  /// largest d >= 1 with 2^d leaves of at least this many bodies (at most 2^8 leaves). Part of what defines
+  /// the trajectory; threads (and processes) take whole nodes, so more leaves let more of them work at once.
+  int bodiesPerLeaf = 128;
 };
 
 /// A body as the solver sees it.
@@ -90,7 +98,7 @@ class ContactSolver {
   [[nodiscard]] const SolverSettings& settings() const { return settings_; }
 
   /// Solves the contacts for velocities and pseudo velocities of `bodies` over a step of dt. With a
-  /// `pool` the two halves of the contact graph are solved on two threads; the result is the same.
+  /// `pool` the nodes of the solving order's tree are shared among its threads; the result is the same.
   void solve(std::span<SolverBody> bodies, std::span<const ContactPointInput> points, double dt,
              ThreadPool* pool = nullptr);
 
@@ -130,13 +138,12 @@ class ContactSolver {
     std::array<std::uint32_t, 4> a, b, row;  // slots, and the rows they came from (kNoRow: padding)
   };
   static constexpr std::uint32_t kNoRow = 0xffffffffu;
-  /// A part's rows coloured so that no two rows of a colour share a body, four of a colour to a batch;
-  /// the rows no colour could take (a body in more than 64 rows) follow, one to a batch, solved one
-  /// after another.
+  /// A part's (a node of the tree's) rows coloured so that no two rows of a colour share a body, four of a
+  /// colour to a batch; the rows no colour could take (a body in more than 64 rows) follow, one to a batch,
+  /// solved one after another.
   struct PartBatches {
     std::vector<Batch> batches;
     std::size_t restBegin = 0;               // the first one-row batch
-    std::vector<std::uint64_t> used;         // per slot: the colours its rows took
     std::vector<std::uint8_t> colour;        // per row of the part (64: none)
     std::array<std::uint32_t, 65> start{};   // (counting sort by colour)
     std::vector<std::uint32_t> sorted;       // rows in batch order, four to a batch (kNoRow: padding)
@@ -147,6 +154,28 @@ class ContactSolver {
   void solveHeavyIslands();
   /// Colours a part's rows and lays out its batches (rows not yet prepared).
   void colour(std::size_t part);
+  /// The tree: parts are numbered level by level from the leaves (leaf k is part k) up to the root (the
+  /// last part); a level's nodes are numbered along it.
+  [[nodiscard]] std::size_t levelStart(int level) const { return levelStart_[static_cast<std::size_t>(level)]; }
+  [[nodiscard]] std::size_t partCount() const { return levelStart_[0] + 1; }
+  [[nodiscard]] int levelOf(std::size_t part) const {
+    int l = depth_;
+    while (l > 0 && part >= levelStart(l - 1)) --l;
+    return l;
+  }
+  /// Whether `worker` of `workers` solves node k of a level of n nodes (contiguous runs of nodes).
+  [[nodiscard]] static bool mine(int worker, int workers, std::size_t k, std::size_t n) {
+    return static_cast<int>(k * static_cast<std::size_t>(workers) / n) == worker;
+  }
+  /// Splits byX_[begin, end) (the bodies of node `node` at `level`) at its median along the longest side
+  /// of the bodies' bounds, down to the leaves.
+  void bisect(std::span<const SolverBody> bodies, std::size_t begin, std::size_t end, int level, std::size_t node);
+  static constexpr int kMaxDepth = 8;
+ public:
+  /// The depth of the solving order's tree for a number of bodies (SolverSettings::bodiesPerLeaf).
+  [[nodiscard]] static int depthFor(std::size_t bodies, int bodiesPerLeaf);
+
+ private:
   /// One velocity iteration over a part's batches; after(j) follows batch j.
   template <class After>
   void velocityPart(std::size_t part, const After& after);
@@ -160,8 +189,8 @@ class ContactSolver {
   static constexpr std::uint32_t kEmpty = 0xffffffffu;
 
   SolverSettings settings_;
-  /// Rows in solving order: the rows within the left half of the bodies (by x), then those within the
-  /// right half, then those joining the two; `parts_` holds the three ranges' boundaries.
+  /// Rows in solving order: part by part (the leaves first, the root last); `parts_` holds the parts'
+  /// boundaries.
   void order(std::span<const SolverBody> bodies);
   /// Reorders a part's rows (from scratch_ into order_) so that the points of one body pair do not follow each other.
   void spread(std::size_t part);
@@ -171,27 +200,38 @@ class ContactSolver {
   /// Indexes this step's keys (keys_) for the next step's warm start.
   void remember();
 
-  std::array<PartBatches, 3> batches_;
+  int depth_ = 1;                       // the tree's leaves: 2^depth_
+  std::vector<std::size_t> levelStart_;  // per level (0: the root): its first part
+  std::vector<PartBatches> batches_;    // per part
+  /// per level: the colours each slot's rows took (a node clears its own slots' entries)
+  std::vector<std::vector<std::uint64_t>> used_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> rowSlots_;  // per row: its bodies' slots
   /// Per batch lane, each part's batches from posBase_[part]: the warm-starting key (keys_), this step's
   /// impulses (nextCache_) and the last step's (cache_, cacheKeys_)
-  std::array<std::size_t, 4> posBase_{};
+  std::vector<std::size_t> posBase_;
   std::vector<std::uint64_t> keys_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> ab_;  // per input point: its bodies
   std::vector<std::uint32_t> order_;  // per row: the index of its input point
   std::vector<std::uint32_t> rank_, scratch_;  // (ordering scratch)
-  std::array<std::vector<std::uint32_t>, 3> rankStart_;  // per part (spread() runs for two parts at once)
-  std::array<std::size_t, 4> parts_{};
-  std::vector<std::uint8_t> side_;    // per solver body: 0 left, 1 right
-  std::vector<std::uint32_t> slot_;   // per solver body: its entry in the velocity arrays
-  std::array<std::uint32_t, 3> fixedSlot_{};  // per part: the fixed side's entry
+  std::vector<std::vector<std::uint32_t>> rankStart_;  // per part (spread() runs for several parts at once)
+  std::vector<std::size_t> parts_;     // per part: its first row (and the end)
+  std::vector<std::uint32_t> leafOf_;  // per solver body: its leaf
+  std::vector<std::size_t> leafStart_;  // per leaf: its first body in byX_ (and the end)
+  std::vector<std::uint32_t> slot_;    // per solver body: its entry in the velocity arrays
+  std::vector<std::uint32_t> leafNext_;  // (ordering scratch: per leaf, its next slot)
+  std::vector<std::size_t> partNext_;    // (ordering scratch: per part, its next row)
+  std::vector<std::uint32_t> fixedSlot_;  // per part: the fixed side's entry
+  std::vector<std::uint32_t> slotBegin_, slotEnd_;  // per part: the range of its bodies' slots
+  std::vector<std::uint8_t> isFixed_;  // per slot: a part's fixed side
   std::size_t slots_ = 0;
-  std::vector<std::pair<double, std::uint32_t>> byX_;
+  std::vector<std::pair<double, std::uint32_t>> byX_;  // bodies, leaf by leaf (sort keys: the cut's axis)
   SpinBarrier barrier_;
   // velocities of the solver bodies and of each part's fixed side (always zero)
   std::vector<V4> v_, w_, pv_, pw_;
   std::vector<Vec3> dv_, dw_;  // the velocities in double, rebuilt from the impulses
-  std::size_t half_ = 0;  // bodies in the left half (the first of byX_)
+  std::vector<std::size_t> started_;  // per part: rows warm started
+  std::vector<double> normalSum_;     // per part: the normal impulses
+  std::array<std::vector<std::uint8_t>, 2> moved_;  // per part: whether a position sweep moved (two sweeps' worth)
   std::vector<std::uint64_t> cacheKeys_;
   std::vector<Cached> cache_;
   std::vector<Cached> nextCache_;
@@ -200,7 +240,8 @@ class ContactSolver {
   // solveHeavyIslands()'s scratch: per slot its island (union-find); the rows (part, batch, lane) grouped by
   // island; one island's dense problem
   std::vector<std::uint32_t> islandOf_;
-  std::vector<std::uint32_t> islandRows_, islandStart_, islandFill_;
+  std::vector<std::uint64_t> islandRows_;
+  std::vector<std::uint32_t> islandStart_, islandFill_;
   std::vector<std::uint8_t> islandHeavy_;
   std::vector<double> islandA_, islandB_, islandLambda_, islandU0_;
   std::vector<std::uint8_t> islandActive_;

@@ -70,9 +70,9 @@ void ContactSolver::solveHeavyIslands() {
   const double ratio = settings_.heavyIslandRatio;
   const int maxRows = std::min(settings_.heavyIslandRows, kMaxRows);
   if (!(ratio > 0.0) || maxRows <= 0) return;
-  const auto isFixed = [&](std::uint32_t s) { return s == fixedSlot_[0] || s == fixedSlot_[1] || s == fixedSlot_[2]; };
+  const auto isFixed = [&](std::uint32_t s) { return isFixed_[s] != 0; };
   const auto forEachRow = [&](const auto& f) {
-    for (std::size_t part = 0; part < 3; ++part) {
+    for (std::size_t part = 0; part < partCount(); ++part) {
       const std::vector<Batch>& batches = batches_[part].batches;
       for (std::size_t j = 0; j < batches.size(); ++j)
         for (std::size_t l = 0; l < 4; ++l)
@@ -109,10 +109,10 @@ void ContactSolver::solveHeavyIslands() {
   for (std::uint32_t s = 0; s < slots_; ++s) islandStart_[s + 1] += islandStart_[s];
   islandFill_.assign(islandStart_.begin(), islandStart_.end() - 1);
   islandRows_.resize(islandStart_[slots_]);
-  // (a row as part in bits 30-31, lane in bits 28-29, batch below)
+  // (a row as part in the upper half, lane in bits 30-31, batch below)
   forEachRow([&](std::size_t part, std::size_t j, std::size_t l, const Batch& b) {
     const std::uint32_t r = rootOf(b, l);
-    islandRows_[islandFill_[r]++] = static_cast<std::uint32_t>(part << 30 | l << 28 | j);
+    islandRows_[islandFill_[r]++] = std::uint64_t{part} << 32 | std::uint64_t{l} << 30 | j;
   });
 
   if (!islandSystem_) islandSystem_ = std::make_unique<IslandSystem>();
@@ -127,9 +127,9 @@ void ContactSolver::solveHeavyIslands() {
     const int n = static_cast<int>(end - begin);
     if (!islandHeavy_[root] || n == 0 || n > maxRows) continue;
     const auto rowAt = [&](int i, std::size_t& l) -> Batch& {
-      const std::uint32_t code = islandRows_[begin + static_cast<std::uint32_t>(i)];
-      l = code >> 28 & 3u;
-      return batches_[code >> 30].batches[code & 0x0fffffffu];
+      const std::uint64_t code = islandRows_[begin + static_cast<std::uint32_t>(i)];
+      l = code >> 30 & 3u;
+      return batches_[code >> 32].batches[code & 0x3fffffffu];
     };
     // one side of a row: its slot (none when fixed), sign, inverse mass, and the direction's linear and
     // angular parts
