@@ -285,28 +285,32 @@ inline F4 whereEitherPositive(const F4& x, const F4& y, const F4& a, const F4& b
 #endif
 }
 
+/// The solver's innermost pieces are always inlined: whether GCC inlines them otherwise changes with the
+/// size of their callers, and a call per row costs a few per cent of the whole step.
+#define VOLPAR_ALWAYS_INLINE [[gnu::always_inline]] inline
+
 /// J v of an axis, lane by lane.
 struct Motion {
   F4 vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz;
-  [[nodiscard]] F4 along(const auto& x) const {
+  [[nodiscard]] VOLPAR_ALWAYS_INLINE F4 along(const auto& x) const {
     return x.dx * (vbx - vax) + x.dy * (vby - vay) + x.dz * (vbz - vaz) + (x.bx * wbx + x.by * wby + x.bz * wbz) -
            (x.ax * wax + x.ay * way + x.az * waz);
   }
   /// An impulse lam along the axis: -lam on A, +lam on B.
-  void push(const auto& x, const F4& lam, const F4& invMassA, const F4& invMassB) {
+  VOLPAR_ALWAYS_INLINE void push(const auto& x, const F4& lam, const F4& invMassA, const F4& invMassB) {
     const F4 ia = invMassA * lam, ib = invMassB * lam;
     vax -= ia * x.dx, vay -= ia * x.dy, vaz -= ia * x.dz;
     vbx += ib * x.dx, vby += ib * x.dy, vbz += ib * x.dz;
     wax -= lam * x.tax, way -= lam * x.tay, waz -= lam * x.taz;
     wbx += lam * x.tbx, wby += lam * x.tby, wbz += lam * x.tbz;
   }
-  void load(const V4* v, const V4* w, const std::array<std::uint32_t, 4>& a, const std::array<std::uint32_t, 4>& b) {
+  VOLPAR_ALWAYS_INLINE void load(const V4* v, const V4* w, const std::array<std::uint32_t, 4>& a, const std::array<std::uint32_t, 4>& b) {
     gather(v, a, vax, vay, vaz);
     gather(w, a, wax, way, waz);
     gather(v, b, vbx, vby, vbz);
     gather(w, b, wbx, wby, wbz);
   }
-  void store(V4* v, V4* w, const std::array<std::uint32_t, 4>& a, const std::array<std::uint32_t, 4>& b) const {
+  VOLPAR_ALWAYS_INLINE void store(V4* v, V4* w, const std::array<std::uint32_t, 4>& a, const std::array<std::uint32_t, 4>& b) const {
     scatter(v, a, vax, vay, vaz);
     scatter(w, a, wax, way, waz);
     scatter(v, b, vbx, vby, vbz);
@@ -316,7 +320,7 @@ struct Motion {
 
 /// The velocity step of a batch whose bodies' velocities are in m.
 template <class Batch>
-inline void velocityBatch(Batch& b, Motion& m) {
+VOLPAR_ALWAYS_INLINE void velocityBatch(Batch& b, Motion& m) {
   const F4 old1 = b.lambdaT1, old2 = b.lambdaT2;
   F4 l1 = old1 - b.massT1 * m.along(b.t1);
   F4 l2 = old2 - b.massT2 * m.along(b.t2);
@@ -438,11 +442,21 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
                           : 1;
   barrier_.reset(workers);
   ab_.resize(np);
-  // calls f(part) for the nodes of a level that `worker` solves
-  const auto forMine = [&](int worker, int level, const auto& f) {
+  // calls f(part) for the nodes of a level that `worker` of this process takes: of all the level's nodes
+  // (forShare: work every process does) or of the process's own (forOwn: the iterations, which the
+  // processes divide)
+  const int ranks = exchange_ ? exchange_->size() : 1, me = exchange_ ? exchange_->rank() : 0;
+  const auto forRange = [&](int worker, int level, std::size_t first, std::size_t end, const auto& f) {
+    const std::size_t n = end - first;
+    for (std::size_t k = first + firstOf(worker, workers, n); k < first + firstOf(worker + 1, workers, n); ++k)
+      f(levelStart(level) + k);
+  };
+  const auto forShare = [&](int worker, int level, const auto& f) {
+    forRange(worker, level, 0, std::size_t{1} << level, f);
+  };
+  const auto forOwn = [&](int worker, int level, const auto& f) {
     const std::size_t n = std::size_t{1} << level;
-    for (std::size_t k = 0; k < n; ++k)
-      if (mine(worker, workers, k, n)) f(levelStart(level) + k);
+    forRange(worker, level, firstOf(me, ranks, n), firstOf(me + 1, ranks, n), f);
   };
   const auto setUp = [&](int worker) {
     // the points' bodies, compact (each thread reads its share of the points once; the ordering then
@@ -461,6 +475,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       rowSlots_.resize(np);
       keys_.resize(posBase_.back());
       impulses_.resize(np);
+      rowImpulse_.resize(np);
       nextCache_.resize(posBase_.back());
       batches_.resize(partCount());
       rankStart_.resize(partCount());
@@ -471,7 +486,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     barrier_.wait();
     // each leaf's velocities in their slots, by the thread solving it; each part's fixed side has an entry
     // of its own, always zero; each part's points spread by its thread
-    forMine(worker, depth_, [&](std::size_t leaf) {
+    forShare(worker, depth_, [&](std::size_t leaf) {
       for (std::size_t k = leafStart_[leaf]; k < leafStart_[leaf + 1]; ++k) {
         const std::uint32_t i = byX_[k].second, s = slot_[i];
         v_[s] = narrow(bodies[i].v);
@@ -483,7 +498,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       }
     });
     for (int l = depth_; l >= 0; --l) {
-      forMine(worker, l, [&](std::size_t part) {
+      forShare(worker, l, [&](std::size_t part) {
         const std::uint32_t s = fixedSlot_[part];
         v_[s] = w_[s] = pv_[s] = pw_[s] = V4::Zero();
         spread(part);
@@ -613,7 +628,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       const Vec3 impulse(static_cast<double>(ln * b.n.dx[l] + tx), static_cast<double>(ln * b.n.dy[l] + ty),
                          static_cast<double>(ln * b.n.dz[l] + tz));
       const Vec3 tangential(static_cast<double>(tx), static_cast<double>(ty), static_cast<double>(tz));
-      impulses_[order_[k]] = impulse;
+      rowImpulse_[k] = impulse;
       sum += static_cast<double>(ln);
       // (into the slots' double velocities: each half's slots lie apart from the other's, so the two
       // threads never write one cache line; the friction acts at its own arms)
@@ -641,11 +656,11 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     // nodes warm started after, level by level, so every body's velocity takes the warm-starting impulses in
     // the same order however many threads there are
     for (int l = depth_; l >= 0; --l)
-      forMine(worker, l, [&](std::size_t part) { colour(part), started_[part] = prepare(part, l == depth_ && settings_.warmStart); });
+      forShare(worker, l, [&](std::size_t part) { colour(part), started_[part] = prepare(part, l == depth_ && settings_.warmStart); });
     barrier_.wait();
     if (settings_.warmStart) {
       for (int l = depth_ - 1; l >= 0; --l) {
-        forMine(worker, l, [&](std::size_t part) {
+        forShare(worker, l, [&](std::size_t part) {
           std::size_t count = 0;
           for (std::size_t j = 0; j < batches_[part].batches.size(); ++j) count += warmStart(part, j);
           started_[part] = count;
@@ -658,22 +673,47 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     // the velocity iterations; the last one hands each batch's impulses to the bodies as it goes (level by
     // level: every body sums its impulses in the same order)
     const auto none = [](std::size_t) {};
+    // (with processes: after each level, every one's share of what its nodes changed, from worker 0 while
+    // the others wait)
+    const auto slots = [&](std::size_t part) { return std::pair{std::size_t{slotBegin_[part]}, std::size_t{slotEnd_[part]}}; };
+    const auto lanes = [&](std::size_t part) { return std::pair{posBase_[part], posBase_[part + 1]}; };
+    const auto rows = [&](std::size_t part) { return std::pair{parts_[part], parts_[part + 1]}; };
+    const auto one = [&](std::size_t part) { return std::pair{part, part + 1}; };
+    const auto shareFinished = [&](int l) {
+      shareLevel(dv_, l, slots);
+      shareLevel(dw_, l, slots);
+      shareLevel(nextCache_, l, lanes);
+      shareLevel(rowImpulse_, l, rows);
+      shareLevel(normalSum_, l, one);
+    };
     for (int it = 0; it < settings_.iterations; ++it) {
       const bool last = it + 1 == settings_.iterations;
       for (int l = depth_; l >= 0; --l) {
-        forMine(worker, l, [&](std::size_t part) {
+        forOwn(worker, l, [&](std::size_t part) {
           if (last) velocityPart(part, [&](std::size_t j) { normalSum_[part] += finish(part, j); });
           else velocityPart(part, none);
         });
         barrier_.wait();
+        if (ranks > 1) {
+          if (worker == 0) {
+            shareLevel(v_, l, slots);
+            shareLevel(w_, l, slots);
+            if (last) shareFinished(l);
+          }
+          barrier_.wait();
+        }
       }
     }
     if (settings_.iterations <= 0) {
       for (int l = depth_; l >= 0; --l) {
-        forMine(worker, l, [&](std::size_t part) {
+        forOwn(worker, l, [&](std::size_t part) {
           for (std::size_t j = 0; j < batches_[part].batches.size(); ++j) normalSum_[part] += finish(part, j);
         });
         barrier_.wait();
+        if (ranks > 1) {
+          if (worker == 0) shareFinished(l);
+          barrier_.wait();
+        }
       }
     }
     // (until no point's pseudo velocity changes by more than the tolerance: the same decision on every
@@ -682,13 +722,21 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     for (int it = 0; it < settings_.positionIterations; ++it) {
       std::vector<std::uint8_t>& m = moved_[static_cast<std::size_t>(it & 1)];
       for (int l = depth_; l >= 0; --l) {
-        forMine(worker, l, [&](std::size_t part) { m[part] = positionPart(part) ? 1 : 0; });
+        forOwn(worker, l, [&](std::size_t part) { m[part] = positionPart(part) ? 1 : 0; });
         barrier_.wait();
+        if (ranks > 1) {
+          if (worker == 0) {
+            shareLevel(pv_, l, slots);
+            shareLevel(pw_, l, slots);
+            shareLevel(m, l, one);
+          }
+          barrier_.wait();
+        }
       }
       if (std::none_of(m.begin(), m.end(), [](std::uint8_t x) { return x != 0; })) break;
     }
     // the velocities and pseudo velocities back to the bodies, each leaf's by its thread
-    forMine(worker, depth_, [&](std::size_t leaf) {
+    forShare(worker, depth_, [&](std::size_t leaf) {
       for (std::size_t k = leafStart_[leaf]; k < leafStart_[leaf + 1]; ++k) {
         const std::uint32_t i = byX_[k].second, s = slot_[i];
         bodies[i].v = dv_[s];
@@ -708,6 +756,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   } else {
     iterate(0);
   }
+  for (std::size_t k = 0; k < np; ++k) impulses_[order_[k]] = rowImpulse_[k];
   warmStarted_ = 0;
   totalNormalImpulse_ = 0.0;
   for (std::size_t part = 0; part < partCount(); ++part) {
@@ -716,6 +765,24 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   }
   std::swap(cacheKeys_, keys_);  // (keys_ is rewritten by the next step's preparation)
   std::swap(cache_, nextCache_);
+}
+
+template <class T, class Range>
+void ContactSolver::shareLevel(std::vector<T>& data, int level, const Range& of) {
+  const int ranks = exchange_->size();
+  const std::size_t n = std::size_t{1} << level;
+  shareOffset_.resize(static_cast<std::size_t>(ranks));
+  shareCount_.resize(static_cast<std::size_t>(ranks));
+  for (int r = 0; r < ranks; ++r) {
+    const std::size_t a = firstOf(r, ranks, n), b = firstOf(r + 1, ranks, n);
+    const auto ri = static_cast<std::size_t>(r);
+    shareOffset_[ri] = shareCount_[ri] = 0;
+    if (a == b) continue;
+    const std::size_t first = of(levelStart(level) + a).first, end = of(levelStart(level) + b - 1).second;
+    shareOffset_[ri] = first * sizeof(T);
+    shareCount_[ri] = (end - first) * sizeof(T);
+  }
+  exchange_->share(std::as_writable_bytes(std::span<T>(data)), shareOffset_, shareCount_);
 }
 
 void ContactSolver::saveWarmStart(StateArchive& archive) const {

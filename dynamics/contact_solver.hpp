@@ -24,6 +24,7 @@
 // thread count, nor on which thread (or, across machines, which process) solves which node.
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -87,6 +88,20 @@ struct ContactPointInput {
   std::uint64_t key = 0;         ///< identity for warm starting
 };
 
+/// Processes that share one solve, each holding every body and point (the same inputs everywhere): the
+/// nodes of each level of the solving order's tree are divided among the processes as among threads, and
+/// after each level every process hands what its nodes changed to the others, so that each continues from
+/// exactly what one process would have. An implementation over MPI: volpar/distributed/mpi_solver_exchange.hpp.
+class SolverExchange {
+ public:
+  virtual ~SolverExchange() = default;
+  [[nodiscard]] virtual int rank() const = 0;
+  [[nodiscard]] virtual int size() const = 0;
+  /// Makes `data` the same on every process: the bytes [offset[r], offset[r] + count[r]) from process r
+  /// (per process, in bytes; the ranges do not overlap). Called by every process with the same ranges.
+  virtual void share(std::span<std::byte> data, std::span<const std::size_t> offset, std::span<const std::size_t> count) = 0;
+};
+
 class ContactSolver {
  public:
   ContactSolver();
@@ -101,6 +116,11 @@ class ContactSolver {
   /// `pool` the nodes of the solving order's tree are shared among its threads; the result is the same.
   void solve(std::span<SolverBody> bodies, std::span<const ContactPointInput> points, double dt,
              ThreadPool* pool = nullptr);
+
+  /// Shares the iterations of every solve with other processes (null: none). Every process then calls solve()
+  /// with the same bodies and points, and every one returns the same velocities and impulses, bit for bit
+  /// those of one process alone.
+  void setExchange(SolverExchange* exchange) { exchange_ = exchange; }
 
   /// Sum of the normal impulses applied in the last solve [N s].
   [[nodiscard]] double totalNormalImpulse() const { return totalNormalImpulse_; }
@@ -163,10 +183,15 @@ class ContactSolver {
     while (l > 0 && part >= levelStart(l - 1)) --l;
     return l;
   }
-  /// Whether `worker` of `workers` solves node k of a level of n nodes (contiguous runs of nodes).
-  [[nodiscard]] static bool mine(int worker, int workers, std::size_t k, std::size_t n) {
-    return static_cast<int>(k * static_cast<std::size_t>(workers) / n) == worker;
+  /// The first of the n nodes of a level that `worker` of `workers` takes (each takes a contiguous run, up
+  /// to the next one's first).
+  [[nodiscard]] static std::size_t firstOf(int worker, int workers, std::size_t n) {
+    return (static_cast<std::size_t>(worker) * n + static_cast<std::size_t>(workers) - 1) / static_cast<std::size_t>(workers);
   }
+  /// After a level's nodes are solved (with processes): every process's share of `data` for that level,
+  /// `of(part)` giving a part's range [first, end) of elements of data (a level's consecutive parts, consecutive ranges).
+  template <class T, class Range>
+  void shareLevel(std::vector<T>& data, int level, const Range& of);
   /// Splits byX_[begin, end) (the bodies of node `node` at `level`) at its median along the longest side
   /// of the bodies' bounds, down to the leaves.
   void bisect(std::span<const SolverBody> bodies, std::size_t begin, std::size_t end, int level, std::size_t node);
@@ -232,6 +257,9 @@ class ContactSolver {
   std::vector<std::size_t> started_;  // per part: rows warm started
   std::vector<double> normalSum_;     // per part: the normal impulses
   std::array<std::vector<std::uint8_t>, 2> moved_;  // per part: whether a position sweep moved (two sweeps' worth)
+  std::vector<Vec3> rowImpulse_;     // per row: its impulse (impulses_ by input point)
+  SolverExchange* exchange_ = nullptr;
+  std::vector<std::size_t> shareOffset_, shareCount_;  // (shareLevel's ranges, per process)
   std::vector<std::uint64_t> cacheKeys_;
   std::vector<Cached> cache_;
   std::vector<Cached> nextCache_;

@@ -110,7 +110,9 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
   Error failure;
   bool failed = false;
   for (std::int64_t i = 0; i < options.steps; ++i) {
-    if (options.stop && options.stop->load()) {
+    bool stop = options.stop && options.stop->load();
+    if (options.stopTogether) stop = options.stopTogether(stop);
+    if (stop) {
       summary.interrupted = true;
       break;
     }

@@ -47,6 +47,9 @@ struct RunOptions {
   std::function<void(std::int64_t, std::int64_t)> progress;
   /// When set and it becomes true, the run stops after the current step and closes the file cleanly.
   const std::atomic<bool>* stop = nullptr;
+  /// Processes stepping one world together: called before every step with whether this one would stop;
+  /// returns whether all stop (every process gets the same answer, so all stop at the same step). May be empty.
+  std::function<bool(bool)> stopTogether;
   /// When > 0: a checkpoint (the whole state, H5mdWriter::writeCheckpoint) after every step whose index is a
   /// multiple of it, after the last step and when interrupted; the file keeps the latest.
   std::int64_t checkpointEvery = 0;

@@ -17,6 +17,12 @@
 #include "volpar/engine/scene/scene_loader.hpp"
 #include "tools/commands.hpp"
 #include "tools/json_writer.hpp"
+#if VOLPAR_HAS_MPI
+#include <fcntl.h>
+
+#include "volpar/distributed/mpi_session.hpp"
+#include "volpar/distributed/mpi_solver_exchange.hpp"
+#endif
 
 namespace volpar::cli {
 
@@ -68,6 +74,16 @@ std::string resumedName(const std::string& resumed, std::int64_t step) {
 }  // namespace
 
 int run(const RunArgs& args) {
+#if VOLPAR_HAS_MPI
+  // under mpirun: every process builds and steps the whole world and they share the contact solver's
+  // iterations; process 0 alone writes the trajectory and reports (docs/distributed.md). The others' output
+  // goes nowhere: they read the same inputs and so meet the same errors, which process 0 reports.
+  const MpiSession mpi;
+  if (mpi.rank() != 0) {
+    const int null = ::open("/dev/null", O_WRONLY);
+    if (null >= 0) ::dup2(null, STDOUT_FILENO), ::dup2(null, STDERR_FILENO), ::close(null);
+  }
+#endif
   if (args.scene.empty() && args.resume.empty()) return fail(Error{"", 0, 0, "expected a scene file, or --resume FILE"});
   // a resumed run: the scene as it was run, from the trajectory, and the state of its checkpoint
   std::optional<Checkpoint> checkpoint;
@@ -87,7 +103,17 @@ int run(const RunArgs& args) {
   auto built = buildScene(*desc, args.limits.build());
   if (!built) return fail(built.error());
   World& world = built->world;
+#if VOLPAR_HAS_MPI
+  // (by default the machine's hardware threads, divided among the processes on it)
+  world.setThreads(args.threads > 0 ? args.threads : std::max(1, defaultThreads() / mpi.localSize()));
+  std::optional<MpiSolverExchange> exchange;
+  if (mpi.size() > 1) {
+    exchange.emplace(MPI_COMM_WORLD);
+    world.setSolverExchange(&*exchange);
+  }
+#else
   world.setThreads(args.threads > 0 ? args.threads : defaultThreads());
+#endif
   if (checkpoint) {
     if (auto restored = world.restoreState(checkpoint->state); !restored) {
       Error e = restored.error();
@@ -119,6 +145,10 @@ int run(const RunArgs& args) {
       if (const auto refused = refuseOverwrite(out, input, built->meshFiles, checkpoint ? "the trajectory resumed" : "the scene file"))
         return fail(*refused);
   }
+#if VOLPAR_HAS_MPI
+  if (mpi.rank() != 0) options.output.clear();  // (after the same checks as process 0's)
+  if (mpi.size() > 1) options.stopTogether = [&mpi](bool mine) { return mpi.any(mine); };
+#endif
   if (isatty(STDERR_FILENO)) options.progress = progressBar;
   options.stop = &gStop;
   options.killAfterFrames = args.killAfterFrames;
@@ -135,7 +165,14 @@ int run(const RunArgs& args) {
   meta.stepsRequested = options.steps;
 
   auto summary = runWorld(world, meta, options);
-  if (!summary) return fail(summary.error());
+  if (!summary) {
+    const int status = fail(summary.error());
+#if VOLPAR_HAS_MPI
+    // (a failure of process 0 alone, writing, leaves the others waiting for it: end them all)
+    if (mpi.size() > 1) mpi.abort(status);
+#endif
+    return status;
+  }
   const RunSummary& s = *summary;
   const double change = s.energyEnd.total() - s.energyStart.total();
   const StageTimes& t = s.stageTimes;
@@ -151,6 +188,10 @@ int run(const RunArgs& args) {
         .field("step_seconds", s.stepSeconds)
         .field("steps_per_second", s.stepsPerSecond)
         .field("threads", world.settings().threads)
+#if VOLPAR_HAS_MPI
+        .field("processes", mpi.size())
+        .field("solver_exchange_bytes", exchange ? exchange->bytesReceived() : std::size_t{0})
+#endif
         .field("simulated_seconds", world.time())
         .field("energy_start", s.energyStart.total())
         .field("energy_end", s.energyEnd.total())
@@ -198,6 +239,11 @@ int run(const RunArgs& args) {
                 s.interrupted ? ", interrupted" : "");
     std::printf("speed        %.1f steps/s (%.3f s stepping, %.3f s wall)\n", s.stepsPerSecond, s.stepSeconds,
                 s.wallSeconds);
+#if VOLPAR_HAS_MPI
+    if (mpi.size() > 1)
+      std::printf("processes    %d sharing the contact solver, %.3g MB of its exchanges received by process 0\n", mpi.size(),
+                  static_cast<double>(exchange->bytesReceived()) / 1e6);
+#endif
     std::printf("stages       integrate velocities %.3f s, solver %.3f s, integrate positions %.3f s, broadphase %.3f s, "
                 "particle contacts %.3f s, narrow phase %.3f s\n",
                 t.integrateVelocities, t.solver, t.integratePositions, t.broadphase, t.particleContacts, t.narrowPhase);

@@ -4,92 +4,23 @@
 
 #include <gtest/gtest.h>
 
-#include <cstdint>
-#include <random>
 #include <vector>
 
 #include "volpar/dynamics/contact_solver.hpp"
 #include "volpar/engine/core/thread_pool.hpp"
+#include "tests/support/contact_lattice.hpp"
 
 namespace volpar {
 namespace {
 
-constexpr int kNx = 6, kNy = 6, kNz = 8;
+using test::Lattice;
+using test::kNx;
+using test::kNy;
+using test::kNz;
+using test::makeLattice;
+using test::Solved;
+using test::solveLattice;
 
-/// A lattice of unit spheres (1 kg, spacing 1) with jittered centres and random velocities, every sphere
-/// touching its lattice neighbours and the bottom layer a fixed floor; some contacts overlap, some have
-/// small gaps.
-struct Lattice {
-  std::vector<SolverBody> bodies;
-  std::vector<ContactPointInput> points;
-};
-
-Lattice makeLattice() {
-  Lattice l;
-  std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> jitter(-0.02, 0.02), speed(-1.0, 1.0), depth(-0.01, 0.02);
-  const auto index = [](int x, int y, int z) { return static_cast<std::uint32_t>((z * kNy + y) * kNx + x); };
-  for (int z = 0; z < kNz; ++z)
-    for (int y = 0; y < kNy; ++y)
-      for (int x = 0; x < kNx; ++x) {
-        SolverBody b;
-        b.position = Vec3(x, y, z + 0.5) + Vec3(jitter(rng), jitter(rng), jitter(rng));
-        b.v = Vec3(speed(rng), speed(rng), speed(rng) - 2.0);
-        b.w = Vec3(speed(rng), speed(rng), speed(rng));
-        b.invMass = 1.0;
-        b.invInertia = Mat3::Identity() / (0.4 * 0.25);  // a solid sphere of radius 0.5
-        l.bodies.push_back(b);
-      }
-  std::uint64_t key = 1;
-  const auto contact = [&](std::uint32_t a, std::uint32_t b, const Vec3& n) {
-    ContactPointInput p;
-    p.a = a;
-    p.b = b;
-    p.normal = n;
-    p.rA = a == ContactPointInput::kFixed ? Vec3::Zero() : Vec3(0.5 * n);
-    p.rB = -0.5 * n;
-    p.depth = depth(rng);
-    p.slop = 0.001;
-    p.friction = 0.5;
-    p.restitution = 0.2;
-    p.key = key++;
-    l.points.push_back(p);
-  };
-  for (int z = 0; z < kNz; ++z)
-    for (int y = 0; y < kNy; ++y)
-      for (int x = 0; x < kNx; ++x) {
-        const std::uint32_t i = index(x, y, z);
-        if (z == 0) contact(ContactPointInput::kFixed, i, Vec3::UnitZ());
-        if (x + 1 < kNx) contact(i, index(x + 1, y, z), Vec3::UnitX());
-        if (y + 1 < kNy) contact(i, index(x, y + 1, z), Vec3::UnitY());
-        if (z + 1 < kNz) contact(i, index(x, y, z + 1), Vec3::UnitZ());
-      }
-  return l;
-}
-
-/// Five solves (the warm start carried from each to the next) with `threads` threads.
-struct Solved {
-  std::vector<SolverBody> bodies;
-  std::vector<Vec3> impulses;
-};
-
-Solved solveLattice(int threads, int bodiesPerLeaf, int iterations) {
-  Lattice l = makeLattice();
-  ContactSolver solver;
-  SolverSettings s;
-  s.bodiesPerLeaf = bodiesPerLeaf;
-  s.iterations = iterations;
-  solver.setSettings(s);
-  ThreadPool pool(threads);
-  pool.setShareAll(true);  // every stage shared, however small
-  Solved r;
-  for (int step = 0; step < 5; ++step) {
-    solver.solve(l.bodies, l.points, 1.0 / 240.0, threads > 1 ? &pool : nullptr);
-    r.impulses.insert(r.impulses.end(), solver.impulses().begin(), solver.impulses().end());
-  }
-  r.bodies = l.bodies;
-  return r;
-}
 
 TEST(ContactSolverTree, DeepTreeGivesTheSameResultOnAnyNumberOfThreads) {
   // 288 bodies in leaves of at least 4: 64 leaves, seven levels

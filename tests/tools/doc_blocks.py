@@ -15,6 +15,7 @@ Blocks, by the first word of the fence's info string:
                 (`tools/scripts/x.py --opt`: exists, is executable when run by its path, lists the option in
                 its --help), `tools/scripts/setup.sh WHAT` (an action of its usage line), `cmake`/`ctest
                 --preset P` (a preset of CMakePresets.json) and `--target T` (a target of the CMake files),
+                `mpirun [OPTIONS] PROGRAM ...` (the program it starts, checked as a command),
                 and every repository path a command names (tools/..., scenes/...) exists. A command the
                 checker does not know is a failure, so a new kind of command gets a check with it.
                 Run: the block's lines, verbatim and in order, by one bash (`export` carries to the next
@@ -332,6 +333,18 @@ class Checker:
             name = os.path.basename(words[0])
             if not re.search(r"\b%s\b" % re.escape(name.replace("_fuzzer", "")), self.cmake_text):
                 self.fail(where, "%s is no program of the build" % words[0])
+        elif head == "mpirun":
+            # mpirun's own options (those taking a value: -np/-n N, --host/-H H, --hostfile F), then the
+            # program it starts, checked as a command of its own
+            rest = words[1:]
+            while rest and rest[0].startswith("-"):
+                takes = rest[0] in ("-np", "-n", "--np", "--host", "-H", "--hostfile", "--map-by", "--bind-to")
+                rest = rest[2:] if takes else rest[1:]
+            if not rest:
+                self.fail(where, "mpirun starts no program: %s" % " ".join(words))
+            else:
+                self.command(where, rest)
+            return
         elif head in ("apt-get", "apt", "sudo", "xvfb-run", "export", "mkdir", "cp", "cd", "ls", "h5dump", "h5ls",
                       "pvpython"):
             pass  # (the repository paths they name are checked below)

@@ -33,6 +33,8 @@ packages=(
   pybind11-dev python3-pybind11 python3-dev python3-pytest
   # the hardening preset: Clang 14 and its runtimes (libFuzzer, AddressSanitizer, UBSan: libclang-rt-14-dev)
   clang libclang-rt-dev
+  # running across processes (VOLPAR_MPI): Open MPI, and parallel HDF5 beside the serial one
+  openmpi-bin libopenmpi-dev libhdf5-openmpi-dev
 )
 
 install_deps() {

@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""`volpar run` under mpirun gives the trajectory of one process, bit for bit.
+
+usage: run_processes.py VOLPAR SCENE STEPS WORKDIR [--processes 2,3]
+
+Runs SCENE for STEPS steps without MPI (one thread), then under mpirun with each number of processes (one
+thread each, oversubscribed), and compares each trajectory with the first with h5diff (every dataset and
+attribute). Each MPI run must report its processes and bytes received through the solver's exchanges (the
+processes did divide the solver's work), and write no file but process 0's.
+
+With --kill-after FRAMES instead: process 0 kills itself (SIGKILL) after writing FRAMES frames of an MPI run
+of 2 processes; the run must end with a non-zero status within the timeout, every process gone, and the
+partial trajectory must hold FRAMES readable frames (h5py).
+"""
+import argparse
+import glob
+import json
+import os
+import subprocess
+import sys
+
+import h5py
+
+
+def mpirun(n, args):
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    return subprocess.run(["mpirun", "-np", str(n), "--oversubscribe"] + args, capture_output=True, text=True,
+                          env=env, timeout=600)
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("volpar")
+    p.add_argument("scene")
+    p.add_argument("steps")
+    p.add_argument("workdir")
+    p.add_argument("--processes", default="2,3")
+    p.add_argument("--kill-after", type=int, default=0)
+    a = p.parse_args()
+    os.makedirs(a.workdir, exist_ok=True)
+    for old in glob.glob(os.path.join(a.workdir, "*.h5*")):
+        os.remove(old)
+    name = os.path.splitext(os.path.basename(a.scene))[0]
+    failures = []
+
+    if a.kill_after:
+        out = os.path.join(a.workdir, name + "-killed.h5")
+        r = mpirun(2, [a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", out,
+                       "--kill-after-frames", str(a.kill_after)])
+        if r.returncode == 0:
+            failures.append("the run with process 0 killed ended with status 0")
+        if "signal 9" not in r.stderr and "Killed" not in r.stderr and "killed" not in r.stderr:
+            failures.append("mpirun said nothing of the killed process:\n" + r.stderr[-2000:])
+        partial = out.replace(".h5", ".partial.h5")
+        try:
+            with h5py.File(partial, "r") as h:
+                frames = h["particles/all/position/step"].shape[0]
+                h["particles/all/position/value"][frames - 1]  # (the last frame reads)
+            if frames != a.kill_after:
+                failures.append("the partial trajectory holds %d frames, expected %d" % (frames, a.kill_after))
+            print("killed after %d frames: status %d, %s holds %d readable frames" % (a.kill_after, r.returncode, partial, frames))
+        except (OSError, KeyError) as e:
+            failures.append("the partial trajectory %s does not read: %s" % (partial, e))
+    else:
+        serial = os.path.join(a.workdir, name + "-1.h5")
+        r = subprocess.run([a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", serial],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            sys.exit("the run of one process failed:\n" + r.stdout + r.stderr)
+        for n in [int(x) for x in a.processes.split(",")]:
+            out = os.path.join(a.workdir, "%s-%d.h5" % (name, n))
+            r = mpirun(n, [a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", out, "--json"])
+            if r.returncode != 0:
+                failures.append("%d processes: status %d\n%s%s" % (n, r.returncode, r.stdout, r.stderr))
+                continue
+            report = json.loads(r.stdout)
+            if report.get("processes") != n or not report.get("solver_exchange_bytes", 0) > 0:
+                failures.append("%d processes: the report says %s processes and %s bytes exchanged" %
+                                (n, report.get("processes"), report.get("solver_exchange_bytes")))
+            # (the files of one process's run, renamed: nothing more from the other processes)
+            files = sorted(os.path.basename(f) for f in glob.glob(os.path.join(a.workdir, "%s-%d*" % (name, n))))
+            expected = sorted(os.path.basename(f).replace("%s-1" % name, "%s-%d" % (name, n))
+                              for f in glob.glob(os.path.join(a.workdir, "%s-1*" % name)))
+            if files != expected:
+                failures.append("%d processes wrote %s, one process %s" % (n, files, expected))
+            d = subprocess.run(["h5diff", "-c", serial, out], capture_output=True, text=True)
+            if d.returncode != 0:
+                failures.append("%d processes: h5diff finds differences from one process:\n%s" % (n, d.stdout[-3000:]))
+            else:
+                print("%d processes: the same trajectory as one process (h5diff), %d bytes of solver exchanges "
+                      "received by process 0" % (n, report["solver_exchange_bytes"]))
+    if failures:
+        sys.exit("\n".join(failures))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,99 @@
+// The contact solver shared by MPI processes (run under mpirun with 1, 2 and 3 processes): every process
+// gets the velocities and impulses of one process alone, bit for bit, with one or two threads each, for a
+// deep tree (64 leaves) and a shallow one (2 leaves, fewer than the processes at 3); and without the
+// exchange the divided solve does differ, so the processes really did divide it.
+
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <cstdio>
+
+#include "tests/support/contact_lattice.hpp"
+#include "volpar/distributed/mpi_solver_exchange.hpp"
+
+namespace volpar {
+namespace {
+
+using test::Solved;
+using test::solveLattice;
+
+/// True on every process when it holds on every process.
+bool everywhere(bool ok) {
+  int mine = ok ? 1 : 0, all = 0;
+  MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+  return all == 1;
+}
+
+bool same(const Solved& a, const Solved& b) {
+  if (a.bodies.size() != b.bodies.size() || a.impulses != b.impulses) return false;
+  for (std::size_t i = 0; i < a.bodies.size(); ++i) {
+    const SolverBody &x = a.bodies[i], &y = b.bodies[i];
+    if (x.v != y.v || x.w != y.w || x.pv != y.pv || x.pw != y.pw) return false;
+  }
+  return true;
+}
+
+/// An exchange that divides the work as MPI's does but hands nothing over.
+class Silent final : public SolverExchange {
+ public:
+  explicit Silent(const SolverExchange& real) : rank_(real.rank()), size_(real.size()) {}
+  [[nodiscard]] int rank() const override { return rank_; }
+  [[nodiscard]] int size() const override { return size_; }
+  void share(std::span<std::byte>, std::span<const std::size_t>, std::span<const std::size_t>) override {}
+
+ private:
+  int rank_, size_;
+};
+
+class SolverRanks : public ::testing::TestWithParam<int> {};  // bodies per leaf
+
+TEST_P(SolverRanks, EveryProcessGetsTheResultOfOne) {
+  const int perLeaf = GetParam();
+  const Solved alone = solveLattice(1, perLeaf, 10);
+  for (const int threads : {1, 2}) {
+    MpiSolverExchange exchange(MPI_COMM_WORLD);
+    const Solved shared = solveLattice(threads, perLeaf, 10, &exchange);
+    EXPECT_TRUE(everywhere(same(shared, alone))) << exchange.size() << " processes, " << threads << " threads";
+    if (exchange.size() > 1) {
+      EXPECT_GT(exchange.calls(), 0u);
+      if (exchange.rank() == 0 && threads == 1)
+        std::printf("%d processes, leaves of %d bodies: %zu exchanges and %zu bytes received by process 0 per solve\n",
+                    exchange.size(), perLeaf, exchange.calls() / 5, exchange.bytesReceived() / 5);
+      // (the bytes that reached a process: 0 for one that owns every node, as the last may with 2 leaves)
+      std::size_t bytes = exchange.bytesReceived(), total = 0;
+      MPI_Allreduce(&bytes, &total, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+      EXPECT_GT(total, 0u);
+    }
+  }
+}
+
+TEST_P(SolverRanks, WithoutTheExchangeTheDividedSolveDiffers) {
+  MpiSolverExchange exchange(MPI_COMM_WORLD);
+  if (exchange.size() == 1) GTEST_SKIP() << "one process divides nothing";
+  const int perLeaf = GetParam();
+  const Solved alone = solveLattice(1, perLeaf, 10);
+  Silent silent(exchange);
+  const Solved divided = solveLattice(1, perLeaf, 10, &silent);
+  EXPECT_FALSE(everywhere(same(divided, alone)));
+}
+
+INSTANTIATE_TEST_SUITE_P(Leaves, SolverRanks, ::testing::Values(4, 128),
+                         [](const ::testing::TestParamInfo<int>& p) { return "bodiesPerLeaf" + std::to_string(p.param); });
+
+}  // namespace
+}  // namespace volpar
+
+int main(int argc, char** argv) {
+  MPI_Init(&argc, &argv);
+  ::testing::InitGoogleTest(&argc, argv);
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  // (one process reports; every one runs every test and agrees on the outcome)
+  if (rank != 0) delete ::testing::UnitTest::GetInstance()->listeners().Release(
+      ::testing::UnitTest::GetInstance()->listeners().default_result_printer());
+  const int status = RUN_ALL_TESTS();
+  int worst = 0;
+  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  MPI_Finalize();
+  return worst;
+}
