@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <numeric>
 
@@ -183,7 +184,10 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   out.patchOfContact.resize(contacts.contacts.size());
   out.flipped.assign(contacts.contacts.size(), 0);
   const std::size_t groups = contacts.groups.size();
-  const bool shared = pool && pool->worthSharing(groups, 512);
+  // (with processes, this one's contiguous run of the groups)
+  const int ranks = processes_ ? processes_->size() : 1, me = processes_ ? processes_->rank() : 0;
+  const std::size_t lo = firstShare(me, ranks, groups), hi = firstShare(me + 1, ranks, groups);
+  const bool shared = pool && pool->worthSharing(hi - lo, 512);
   const std::size_t workers = shared ? static_cast<std::size_t>(pool->workers()) : 1;
   const std::size_t chunks = shared ? ThreadPool::kChunksPerWorker * workers : 1;
   if (workers_.size() < workers) workers_.resize(workers);
@@ -202,7 +206,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   const auto work = [&](int worker, std::size_t k) {
     Worker& w = workers_[static_cast<std::size_t>(worker)];
     w.o = &chunks_[k];
-    const std::size_t begin = groups * k / chunks, end = groups * (k + 1) / chunks;
+    const std::size_t begin = lo + (hi - lo) * k / chunks, end = lo + (hi - lo) * (k + 1) / chunks;
     // each group's patches of the last run, if it may take them over (groups mostly come in key order,
     // like the cache: a cursor walks forward, a binary search when not)
     auto cursor = cache_.groups.begin();
@@ -227,10 +231,17 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   };
   if (shared) pool->runItems(chunks, work);
   else work(0, 0);
+  // (with processes: every process's chunks, in process order, and the contacts' values its workers wrote)
+  std::vector<Output>& list = ranks > 1 ? gathered_ : chunks_;
+  const std::size_t listed = ranks > 1 ? gatherChunks(chunks) : chunks;
+  if (ranks > 1) {
+    shareContacts(contacts, out.depthAlongNormal);
+    shareContacts(contacts, out.flipped);
+  }
   // the chunks' outputs at their places, copied by the workers
   std::size_t patches = 0, indices = 0, cachedGroups = 0, cachedPairs = 0, cachedOrder = 0, cachedPatches = 0;
-  for (std::size_t k = 0; k < chunks; ++k) {
-    Output& o = chunks_[k];
+  for (std::size_t k = 0; k < listed; ++k) {
+    Output& o = list[k];
     o.patchBase = patches;
     o.contactBase = indices;
     o.groupBase = cachedGroups;
@@ -253,7 +264,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   cache_.patches.resize(cachedPatches);
   const auto copy = [&](int, std::size_t begin, std::size_t end) {
     for (std::size_t k = begin; k < end; ++k) {
-      const Output& o = chunks_[k];
+      const Output& o = list[k];
       const auto contactBase = static_cast<std::uint32_t>(o.contactBase);
       for (std::size_t j = 0; j < o.patches.size(); ++j) {
         ContactPatch patch = o.patches[j];
@@ -275,12 +286,61 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
                 cache_.patches.begin() + static_cast<std::ptrdiff_t>(o.cachedPatchBase));
     }
   };
-  if (shared) pool->run(chunks, copy);
-  else copy(0, 0, chunks);
+  if (pool && pool->worthSharing(listed, 1)) pool->run(listed, copy);
+  else copy(0, 0, listed);
   // lookups need the keys in order (they are, as groups come sorted, but a caller may order them otherwise)
   if (!std::is_sorted(cache_.groups.begin(), cache_.groups.end(),
                       [](const CachedGroup& x, const CachedGroup& y) { return x.key < y.key; }))
     cache_.clear();
+}
+
+std::size_t NarrowPhase::gatherChunks(std::size_t count) {
+  // (the chunks' vectors and counts as bytes: the processes are copies of one program on one kind of machine)
+  mine_.clear();
+  for (std::size_t k = 0; k < count; ++k) {
+    const Output& o = chunks_[k];
+    appendBytes(mine_, o.patches);
+    appendBytes(mine_, o.contacts);
+    appendValue(mine_, o.stats);
+    appendBytes(mine_, o.cache.groups);
+    appendBytes(mine_, o.cache.pairs);
+    appendBytes(mine_, o.cache.order);
+    appendBytes(mine_, o.cache.patches);
+  }
+  processes_->gather(mine_, all_, ends_);
+  std::size_t listed = 0;
+  const std::byte* at = all_.data();
+  const std::byte* const end = all_.data() + all_.size();
+  while (at < end) {
+    if (gathered_.size() <= listed) gathered_.resize(listed + 1);
+    Output& o = gathered_[listed++];
+    readBytes(at, o.patches);
+    readBytes(at, o.contacts);
+    readValue(at, o.stats);
+    readBytes(at, o.cache.groups);
+    readBytes(at, o.cache.pairs);
+    readBytes(at, o.cache.order);
+    readBytes(at, o.cache.patches);
+  }
+  return listed;
+}
+
+template <class T>
+void NarrowPhase::shareContacts(const ContactSet& contacts, std::vector<T>& values) {
+  const int ranks = processes_->size();
+  const std::size_t groups = contacts.groups.size();
+  shareOffset_.assign(static_cast<std::size_t>(ranks), 0);
+  shareCount_.assign(static_cast<std::size_t>(ranks), 0);
+  for (int r = 0; r < ranks; ++r) {
+    const std::size_t a = firstShare(r, ranks, groups), b = firstShare(r + 1, ranks, groups);
+    if (a == b) continue;
+    // (a group's contacts are contiguous, and the groups come in the contacts' order)
+    const ContactGroup &first = contacts.groups[a], &last = contacts.groups[b - 1];
+    VOLPAR_ASSERT(last.first >= first.first, "contact groups out of the contacts' order");
+    shareOffset_[static_cast<std::size_t>(r)] = first.first * sizeof(T);
+    shareCount_[static_cast<std::size_t>(r)] = (last.first + last.count - first.first) * sizeof(T);
+  }
+  processes_->share(std::as_writable_bytes(std::span<T>(values)), shareOffset_, shareCount_);
 }
 
 void NarrowPhase::makePatches(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, Worker& w,

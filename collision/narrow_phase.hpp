@@ -22,6 +22,7 @@
 #include "volpar/engine/core/body_store.hpp"
 #include "volpar/engine/core/particle_store.hpp"
 #include "volpar/engine/core/plane.hpp"
+#include "volpar/engine/core/process_group.hpp"
 #include "volpar/engine/core/thread_pool.hpp"
 
 namespace volpar {
@@ -42,6 +43,10 @@ class NarrowPhase {
   void setSettings(const PlaneSettings& s) { settings_ = s; }
   [[nodiscard]] const PlaneSettings& settings() const { return settings_; }
 
+  /// Shares the groups of later runs with other processes (null: none): each computes a contiguous run of
+  /// the groups, and every one gets every process's patches and cache (docs/distributed.md). Every process
+  /// calls run() with the same input and gets the same output, that of one process alone.
+  void setProcesses(ProcessGroup* processes) { processes_ = processes; }
   /// Patches and planes for every contact group. `pool` (optional) shares the groups among threads.
   void run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out, ThreadPool* pool = nullptr);
   /// Forgets the patches kept for reuse (the next run computes every patch).
@@ -126,6 +131,16 @@ class NarrowPhase {
   std::vector<Worker> workers_;
   Cache cache_;                        // what the last run computed or reused, for the next
   std::vector<Output> chunks_;
+  // with processes: this process's chunks as bytes, every process's, and every process's chunks again
+  ProcessGroup* processes_ = nullptr;
+  std::vector<std::byte> mine_, all_;
+  std::vector<std::size_t> ends_, shareOffset_, shareCount_;
+  std::vector<Output> gathered_;
+  /// Every process's chunks, from each process's `count` chunks of chunks_, into gathered_; returns how many.
+  std::size_t gatherChunks(std::size_t count);
+  /// Every process's values of `values` for the contacts of its groups.
+  template <class T>
+  void shareContacts(const ContactSet& contacts, std::vector<T>& values);
 };
 
 }  // namespace volpar

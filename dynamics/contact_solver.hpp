@@ -30,6 +30,7 @@
 #include <span>
 #include <vector>
 
+#include "volpar/engine/core/process_group.hpp"
 #include "volpar/engine/core/state_archive.hpp"
 #include "volpar/engine/core/thread_pool.hpp"
 #include "volpar/engine/core/types.hpp"
@@ -88,20 +89,6 @@ struct ContactPointInput {
   std::uint64_t key = 0;         ///< identity for warm starting
 };
 
-/// Processes that share one solve, each holding every body and point (the same inputs everywhere): the
-/// nodes of each level of the solving order's tree are divided among the processes as among threads, and
-/// after each level every process hands what its nodes changed to the others, so that each continues from
-/// exactly what one process would have. An implementation over MPI: volpar/distributed/mpi_solver_exchange.hpp.
-class SolverExchange {
- public:
-  virtual ~SolverExchange() = default;
-  [[nodiscard]] virtual int rank() const = 0;
-  [[nodiscard]] virtual int size() const = 0;
-  /// Makes `data` the same on every process: the bytes [offset[r], offset[r] + count[r]) from process r
-  /// (per process, in bytes; the ranges do not overlap). Called by every process with the same ranges.
-  virtual void share(std::span<std::byte> data, std::span<const std::size_t> offset, std::span<const std::size_t> count) = 0;
-};
-
 class ContactSolver {
  public:
   ContactSolver();
@@ -118,9 +105,11 @@ class ContactSolver {
              ThreadPool* pool = nullptr);
 
   /// Shares the iterations of every solve with other processes (null: none). Every process then calls solve()
-  /// with the same bodies and points, and every one returns the same velocities and impulses, bit for bit
-  /// those of one process alone.
-  void setExchange(SolverExchange* exchange) { exchange_ = exchange; }
+  /// with the same bodies and points and does the set-up alone; the nodes of each level of the solving
+  /// tree are divided among the processes as among threads, and after each level every process hands what
+  /// its nodes changed to the others. Every one returns the velocities and impulses of one process alone,
+  /// bit for bit.
+  void setProcesses(ProcessGroup* processes) { exchange_ = processes; }
 
   /// Sum of the normal impulses applied in the last solve [N s].
   [[nodiscard]] double totalNormalImpulse() const { return totalNormalImpulse_; }
@@ -185,9 +174,7 @@ class ContactSolver {
   }
   /// The first of the n nodes of a level that `worker` of `workers` takes (each takes a contiguous run, up
   /// to the next one's first).
-  [[nodiscard]] static std::size_t firstOf(int worker, int workers, std::size_t n) {
-    return (static_cast<std::size_t>(worker) * n + static_cast<std::size_t>(workers) - 1) / static_cast<std::size_t>(workers);
-  }
+  [[nodiscard]] static std::size_t firstOf(int worker, int workers, std::size_t n) { return firstShare(worker, workers, n); }
   /// After a level's nodes are solved (with processes): every process's share of `data` for that level,
   /// `of(part)` giving a part's range [first, end) of elements of data (a level's consecutive parts, consecutive ranges).
   template <class T, class Range>
@@ -258,7 +245,7 @@ class ContactSolver {
   std::vector<double> normalSum_;     // per part: the normal impulses
   std::array<std::vector<std::uint8_t>, 2> moved_;  // per part: whether a position sweep moved (two sweeps' worth)
   std::vector<Vec3> rowImpulse_;     // per row: its impulse (impulses_ by input point)
-  SolverExchange* exchange_ = nullptr;
+  ProcessGroup* exchange_ = nullptr;
   std::vector<std::size_t> shareOffset_, shareCount_;  // (shareLevel's ranges, per process)
   std::vector<std::uint64_t> cacheKeys_;
   std::vector<Cached> cache_;

@@ -213,6 +213,11 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   return id;
 }
 
+void World::setProcesses(ProcessGroup* processes) {
+  narrowPhase_.setProcesses(processes);
+  solver_.setProcesses(processes);
+}
+
 void World::setThreads(int threads, bool shareAll) {
   settings_.threads = std::max(1, threads);
   if (settings_.threads == 1) pool_.reset();

@@ -124,9 +124,10 @@ class World {
   /// Worker threads for later steps (1 = run on the calling thread only); results do not depend on it.
   /// Work too small to be worth waking the workers runs on the calling thread, unless `shareAll`.
   void setThreads(int threads, bool shareAll = false);
-  /// Shares the contact solver's iterations with other processes, each stepping this same world
-  /// (docs/distributed.md); null: none. The trajectory is the same bit for bit.
-  void setSolverExchange(SolverExchange* exchange) { solver_.setExchange(exchange); }
+  /// Shares the work of later steps with other processes, each stepping this same world
+  /// (docs/distributed.md): the narrow phase's contact groups and the contact solver's iterations; null:
+  /// none. The trajectory is the same bit for bit.
+  void setProcesses(ProcessGroup* processes);
 
   [[nodiscard]] const WorldSettings& settings() const { return settings_; }
   [[nodiscard]] const ParticleStore& particles() const { return particles_; }

@@ -21,7 +21,7 @@
 #include <fcntl.h>
 
 #include "volpar/distributed/mpi_session.hpp"
-#include "volpar/distributed/mpi_solver_exchange.hpp"
+#include "volpar/distributed/mpi_process_group.hpp"
 #endif
 
 namespace volpar::cli {
@@ -106,10 +106,10 @@ int run(const RunArgs& args) {
 #if VOLPAR_HAS_MPI
   // (by default the machine's hardware threads, divided among the processes on it)
   world.setThreads(args.threads > 0 ? args.threads : std::max(1, defaultThreads() / mpi.localSize()));
-  std::optional<MpiSolverExchange> exchange;
+  std::optional<MpiProcessGroup> exchange;
   if (mpi.size() > 1) {
     exchange.emplace(MPI_COMM_WORLD);
-    world.setSolverExchange(&*exchange);
+    world.setProcesses(&*exchange);
   }
 #else
   world.setThreads(args.threads > 0 ? args.threads : defaultThreads());

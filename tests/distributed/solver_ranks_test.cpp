@@ -9,7 +9,7 @@
 #include <cstdio>
 
 #include "tests/support/contact_lattice.hpp"
-#include "volpar/distributed/mpi_solver_exchange.hpp"
+#include "volpar/distributed/mpi_process_group.hpp"
 
 namespace volpar {
 namespace {
@@ -34,12 +34,13 @@ bool same(const Solved& a, const Solved& b) {
 }
 
 /// An exchange that divides the work as MPI's does but hands nothing over.
-class Silent final : public SolverExchange {
+class Silent final : public ProcessGroup {
  public:
-  explicit Silent(const SolverExchange& real) : rank_(real.rank()), size_(real.size()) {}
+  explicit Silent(const ProcessGroup& real) : rank_(real.rank()), size_(real.size()) {}
   [[nodiscard]] int rank() const override { return rank_; }
   [[nodiscard]] int size() const override { return size_; }
   void share(std::span<std::byte>, std::span<const std::size_t>, std::span<const std::size_t>) override {}
+  void gather(std::span<const std::byte>, std::vector<std::byte>&, std::vector<std::size_t>&) override {}
 
  private:
   int rank_, size_;
@@ -51,7 +52,7 @@ TEST_P(SolverRanks, EveryProcessGetsTheResultOfOne) {
   const int perLeaf = GetParam();
   const Solved alone = solveLattice(1, perLeaf, 10);
   for (const int threads : {1, 2}) {
-    MpiSolverExchange exchange(MPI_COMM_WORLD);
+    MpiProcessGroup exchange(MPI_COMM_WORLD);
     const Solved shared = solveLattice(threads, perLeaf, 10, &exchange);
     EXPECT_TRUE(everywhere(same(shared, alone))) << exchange.size() << " processes, " << threads << " threads";
     if (exchange.size() > 1) {
@@ -68,7 +69,7 @@ TEST_P(SolverRanks, EveryProcessGetsTheResultOfOne) {
 }
 
 TEST_P(SolverRanks, WithoutTheExchangeTheDividedSolveDiffers) {
-  MpiSolverExchange exchange(MPI_COMM_WORLD);
+  MpiProcessGroup exchange(MPI_COMM_WORLD);
   if (exchange.size() == 1) GTEST_SKIP() << "one process divides nothing";
   const int perLeaf = GetParam();
   const Solved alone = solveLattice(1, perLeaf, 10);

@@ -71,14 +71,14 @@ struct Solved {
   std::vector<Vec3> impulses;
 };
 
-inline Solved solveLattice(int threads, int bodiesPerLeaf, int iterations, SolverExchange* exchange = nullptr) {
+inline Solved solveLattice(int threads, int bodiesPerLeaf, int iterations, ProcessGroup* exchange = nullptr) {
   Lattice l = makeLattice();
   ContactSolver solver;
   SolverSettings s;
   s.bodiesPerLeaf = bodiesPerLeaf;
   s.iterations = iterations;
   solver.setSettings(s);
-  solver.setExchange(exchange);
+  solver.setProcesses(exchange);
   ThreadPool pool(threads);
   pool.setShareAll(true);  // every stage shared, however small
   Solved r;

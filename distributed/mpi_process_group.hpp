@@ -1,27 +1,28 @@
 #pragma once
-// The contact solver's exchange between processes over MPI: each process's share of a level's results
-// gathered into every process (MPI_Allgatherv in place).
+// Processes stepping one world together, over MPI: each process's share of a stage's results gathered into
+// every process (MPI_Allgatherv).
 
 #include <mpi.h>
 
 #include <vector>
 
-#include "volpar/dynamics/contact_solver.hpp"
+#include "volpar/engine/core/process_group.hpp"
 
 namespace volpar {
 
-class MpiSolverExchange final : public SolverExchange {
+class MpiProcessGroup final : public ProcessGroup {
  public:
   /// Over the processes of `comm` (which stays the caller's).
-  explicit MpiSolverExchange(MPI_Comm comm);
+  explicit MpiProcessGroup(MPI_Comm comm);
 
   [[nodiscard]] int rank() const override { return rank_; }
   [[nodiscard]] int size() const override { return size_; }
   void share(std::span<std::byte> data, std::span<const std::size_t> offset, std::span<const std::size_t> count) override;
+  void gather(std::span<const std::byte> mine, std::vector<std::byte>& all, std::vector<std::size_t>& ends) override;
 
-  /// Bytes this process has received through share() so far (what the others' shares cost it).
+  /// Bytes this process has received through share() and gather() so far (what the others' shares cost it).
   [[nodiscard]] std::size_t bytesReceived() const { return received_; }
-  /// share() calls so far.
+  /// share() and gather() calls so far.
   [[nodiscard]] std::size_t calls() const { return calls_; }
 
  private:
@@ -29,6 +30,7 @@ class MpiSolverExchange final : public SolverExchange {
   int rank_ = 0;
   int size_ = 1;
   std::vector<int> counts_, displacements_;
+  std::vector<unsigned long long> sizes_;
   std::size_t received_ = 0;
   std::size_t calls_ = 0;
 };

@@ -1,0 +1,63 @@
+#pragma once
+// Processes that step one world together (docs/distributed.md): each holds the whole world and does its
+// share of a stage's work, and these calls hand every process the others' results. The layers below the
+// engine see processes only through this; the MPI implementation is volpar/distributed/mpi_process_group.hpp.
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <span>
+#include <vector>
+
+namespace volpar {
+
+class ProcessGroup {
+ public:
+  virtual ~ProcessGroup() = default;
+  [[nodiscard]] virtual int rank() const = 0;
+  [[nodiscard]] virtual int size() const = 0;
+  /// Makes `data` the same on every process: the bytes [offset[r], offset[r] + count[r]) from process r
+  /// (per process, in bytes; the ranges do not overlap). Called by every process with the same ranges.
+  virtual void share(std::span<std::byte> data, std::span<const std::size_t> offset, std::span<const std::size_t> count) = 0;
+  /// Every process's `mine`, one after another in process order, into `all`; `ends[r]`: where process r's end.
+  virtual void gather(std::span<const std::byte> mine, std::vector<std::byte>& all, std::vector<std::size_t>& ends) = 0;
+};
+
+// A stage's results as bytes for gather(): vectors (their length, then their elements) and single values,
+// read back in the order written. (Plain data only: the processes are copies of one program on one kind of
+// machine, so the bytes mean the same on every one.)
+template <class T>
+void appendBytes(std::vector<std::byte>& to, const std::vector<T>& v) {
+  const std::uint64_t n = v.size();
+  const auto* size = reinterpret_cast<const std::byte*>(&n);
+  to.insert(to.end(), size, size + sizeof n);
+  const auto* data = reinterpret_cast<const std::byte*>(v.data());
+  to.insert(to.end(), data, data + n * sizeof(T));
+}
+template <class T>
+void appendValue(std::vector<std::byte>& to, const T& value) {
+  const auto* data = reinterpret_cast<const std::byte*>(&value);
+  to.insert(to.end(), data, data + sizeof(T));
+}
+template <class T>
+void readBytes(const std::byte*& from, std::vector<T>& v) {
+  std::uint64_t n = 0;
+  std::memcpy(&n, from, sizeof n);
+  from += sizeof n;
+  v.resize(n);
+  std::memcpy(static_cast<void*>(v.data()), from, n * sizeof(T));
+  from += n * sizeof(T);
+}
+template <class T>
+void readValue(const std::byte*& from, T& value) {
+  std::memcpy(static_cast<void*>(&value), from, sizeof(T));
+  from += sizeof(T);
+}
+
+/// The first of n items that process (or worker) `rank` of `size` takes: each takes a contiguous run, up to
+/// the next one's first.
+[[nodiscard]] inline std::size_t firstShare(int rank, int size, std::size_t n) {
+  return (static_cast<std::size_t>(rank) * n + static_cast<std::size_t>(size) - 1) / static_cast<std::size_t>(size);
+}
+
+}  // namespace volpar
