@@ -11,13 +11,18 @@ processes did divide the solver's work), and write no file but process 0's.
 With --kill-after FRAMES instead: process 0 kills itself (SIGKILL) after writing FRAMES frames of an MPI run
 of 2 processes; the run must end with a non-zero status within the timeout, every process gone, and the
 partial trajectory must hold FRAMES readable frames (h5py).
+
+With --kill-other instead: once process 0 has written its first frames, process 1 is killed (SIGKILL) from
+outside; mpirun must end process 0 too, with a non-zero status, and the frames process 0 committed must read.
 """
 import argparse
 import glob
 import json
 import os
 import subprocess
+import signal
 import sys
+import time
 
 import h5py
 
@@ -36,6 +41,7 @@ def main():
     p.add_argument("workdir")
     p.add_argument("--processes", default="2,3")
     p.add_argument("--kill-after", type=int, default=0)
+    p.add_argument("--kill-other", action="store_true")
     a = p.parse_args()
     os.makedirs(a.workdir, exist_ok=True)
     for old in glob.glob(os.path.join(a.workdir, "*.h5*")):
@@ -43,7 +49,56 @@ def main():
     name = os.path.splitext(os.path.basename(a.scene))[0]
     failures = []
 
-    if a.kill_after:
+    if a.kill_other:
+        out = os.path.join(a.workdir, name + "-other-killed.h5")
+        partial = out.replace(".h5", ".partial.h5")
+        env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+        run = subprocess.Popen(["mpirun", "-np", "2", "--oversubscribe", a.volpar, "run", a.scene, "--steps", a.steps,
+                                "--threads", "1", "-o", out, "--flush-every", "0"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        # process 1: the child of mpirun whose environment names rank 1
+        other = None
+        deadline = time.time() + 60
+        while other is None and time.time() < deadline and run.poll() is None:
+            for pid in os.listdir("/proc"):
+                if not pid.isdigit():
+                    continue
+                try:
+                    with open("/proc/%s/stat" % pid) as f:
+                        ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+                    with open("/proc/%s/environ" % pid, "rb") as f:
+                        environ = f.read().split(b"\0")
+                except OSError:
+                    continue
+                if ppid == run.pid and b"OMPI_COMM_WORLD_RANK=1" in environ:
+                    other = int(pid)
+            time.sleep(0.05)
+        # (once process 0's file exists it has its first frame; a little later, some more)
+        while time.time() < deadline and run.poll() is None and not os.path.exists(partial):
+            time.sleep(0.05)
+        time.sleep(1.0)
+        if other is None or run.poll() is not None:
+            sys.exit("process 1 was not found, or the run ended before it could be killed")
+        os.kill(other, signal.SIGKILL)
+        try:
+            stdout, stderr = run.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            run.kill()
+            sys.exit("killing process 1 did not end the run within 120 s")
+        if run.returncode == 0:
+            failures.append("the run with process 1 killed ended with status 0")
+        if "signal 9" not in stderr and "Killed" not in stderr and "killed" not in stderr:
+            failures.append("mpirun said nothing of the killed process:\n" + stderr[-2000:])
+        try:
+            with h5py.File(partial, "r") as h:
+                frames = h["particles/all/position/step"].shape[0]
+                h["particles/all/position/value"][frames - 1]
+            if frames < 1:
+                failures.append("the partial trajectory holds no frame")
+            print("process 1 killed: status %d, %s holds %d readable frames" % (run.returncode, partial, frames))
+        except (OSError, KeyError) as e:
+            failures.append("the partial trajectory %s does not read: %s" % (partial, e))
+    elif a.kill_after:
         out = os.path.join(a.workdir, name + "-killed.h5")
         r = mpirun(2, [a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", out,
                        "--kill-after-frames", str(a.kill_after)])
