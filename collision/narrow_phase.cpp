@@ -294,33 +294,33 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
     cache_.clear();
 }
 
+namespace {
+
+/// Calls f on each part of a chunk's output that travels between processes, in one fixed order.
+template <class O, class F>
+void eachTravelling(O& o, const F& f) {
+  f(o.patches);
+  f(o.contacts);
+  f(o.stats);
+  f(o.cache.groups);
+  f(o.cache.pairs);
+  f(o.cache.order);
+  f(o.cache.patches);
+}
+
+}  // namespace
+
 std::size_t NarrowPhase::gatherChunks(std::size_t count) {
   // (the chunks' vectors and counts as bytes: the processes are copies of one program on one kind of machine)
   mine_.clear();
-  for (std::size_t k = 0; k < count; ++k) {
-    const Output& o = chunks_[k];
-    appendBytes(mine_, o.patches);
-    appendBytes(mine_, o.contacts);
-    appendValue(mine_, o.stats);
-    appendBytes(mine_, o.cache.groups);
-    appendBytes(mine_, o.cache.pairs);
-    appendBytes(mine_, o.cache.order);
-    appendBytes(mine_, o.cache.patches);
-  }
-  processes_->gather(mine_, all_, ends_);
+  for (std::size_t k = 0; k < count; ++k) eachTravelling(chunks_[k], [&](const auto& part) { appendBytes(mine_, part); });
+  processes_->gather(mine_, all_);
   std::size_t listed = 0;
   const std::byte* at = all_.data();
   const std::byte* const end = all_.data() + all_.size();
   while (at < end) {
     if (gathered_.size() <= listed) gathered_.resize(listed + 1);
-    Output& o = gathered_[listed++];
-    readBytes(at, o.patches);
-    readBytes(at, o.contacts);
-    readValue(at, o.stats);
-    readBytes(at, o.cache.groups);
-    readBytes(at, o.cache.pairs);
-    readBytes(at, o.cache.order);
-    readBytes(at, o.cache.patches);
+    eachTravelling(gathered_[listed++], [&](auto& part) { readBytes(at, part); });
   }
   return listed;
 }

@@ -134,7 +134,7 @@ class NarrowPhase {
   // with processes: this process's chunks as bytes, every process's, and every process's chunks again
   ProcessGroup* processes_ = nullptr;
   std::vector<std::byte> mine_, all_;
-  std::vector<std::size_t> ends_, shareOffset_, shareCount_;
+  std::vector<std::size_t> shareOffset_, shareCount_;
   std::vector<Output> gathered_;
   /// Every process's chunks, from each process's `count` chunks of chunks_, into gathered_; returns how many.
   std::size_t gatherChunks(std::size_t count);

@@ -29,12 +29,11 @@ void MpiProcessGroup::share(std::span<std::byte> data, std::span<const std::size
   MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, data.data(), counts_.data(), displacements_.data(), MPI_BYTE, comm_);
 }
 
-void MpiProcessGroup::gather(std::span<const std::byte> mine, std::vector<std::byte>& all, std::vector<std::size_t>& ends) {
+void MpiProcessGroup::gather(std::span<const std::byte> mine, std::vector<std::byte>& all) {
   // every process's size first, then the bytes
   unsigned long long size = mine.size();
   MPI_Allgather(&size, 1, MPI_UNSIGNED_LONG_LONG, sizes_.data(), 1, MPI_UNSIGNED_LONG_LONG, comm_);
   constexpr auto kMax = static_cast<unsigned long long>(std::numeric_limits<int>::max());
-  ends.resize(counts_.size());
   unsigned long long total = 0;
   for (std::size_t r = 0; r < counts_.size(); ++r) {
     if (sizes_[r] > kMax || total > kMax - sizes_[r])
@@ -42,7 +41,6 @@ void MpiProcessGroup::gather(std::span<const std::byte> mine, std::vector<std::b
     counts_[r] = static_cast<int>(sizes_[r]);
     displacements_[r] = static_cast<int>(total);
     total += sizes_[r];
-    ends[r] = static_cast<std::size_t>(total);
     if (static_cast<int>(r) != rank_) received_ += sizes_[r];
   }
   ++calls_;

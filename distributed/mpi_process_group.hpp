@@ -18,7 +18,7 @@ class MpiProcessGroup final : public ProcessGroup {
   [[nodiscard]] int rank() const override { return rank_; }
   [[nodiscard]] int size() const override { return size_; }
   void share(std::span<std::byte> data, std::span<const std::size_t> offset, std::span<const std::size_t> count) override;
-  void gather(std::span<const std::byte> mine, std::vector<std::byte>& all, std::vector<std::size_t>& ends) override;
+  void gather(std::span<const std::byte> mine, std::vector<std::byte>& all) override;
 
   /// Bytes this process has received through share() and gather() so far (what the others' shares cost it).
   [[nodiscard]] std::size_t bytesReceived() const { return received_; }

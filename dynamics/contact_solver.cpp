@@ -96,13 +96,13 @@ void ContactSolver::bisect(std::span<const SolverBody> bodies, std::size_t begin
                            std::size_t node) {
   if (level == depth_) {
     leafStart_[node] = begin;
-    for (std::size_t k = begin; k < end; ++k) leafOf_[byX_[k].second] = static_cast<std::uint32_t>(node);
+    for (std::size_t k = begin; k < end; ++k) leafOf_[byLeaf_[k].second] = static_cast<std::uint32_t>(node);
     return;
   }
   // the longest side of the node's bodies' bounds (the first of equal sides)
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (std::size_t k = begin; k < end; ++k) {
-    const Vec3& x = bodies[byX_[k].second].position;
+    const Vec3& x = bodies[byLeaf_[k].second].position;
     lo = lo.cwiseMin(x);
     hi = hi.cwiseMax(x);
   }
@@ -112,12 +112,12 @@ void ContactSolver::bisect(std::span<const SolverBody> bodies, std::size_t begin
     if (side.y() > side[axis]) axis = 1;
     if (side.z() > side[axis]) axis = 2;
   }
-  for (std::size_t k = begin; k < end; ++k) byX_[k].first = bodies[byX_[k].second].position[axis];
+  for (std::size_t k = begin; k < end; ++k) byLeaf_[k].first = bodies[byLeaf_[k].second].position[axis];
   // split at the median (ties by index: the halves are the same sets whatever the order before)
   const std::size_t mid = begin + (end - begin) / 2;
   if (end - begin >= 2)
-    std::nth_element(byX_.begin() + static_cast<std::ptrdiff_t>(begin), byX_.begin() + static_cast<std::ptrdiff_t>(mid),
-                     byX_.begin() + static_cast<std::ptrdiff_t>(end));
+    std::nth_element(byLeaf_.begin() + static_cast<std::ptrdiff_t>(begin), byLeaf_.begin() + static_cast<std::ptrdiff_t>(mid),
+                     byLeaf_.begin() + static_cast<std::ptrdiff_t>(end));
   bisect(bodies, begin, mid, level + 1, 2 * node);
   bisect(bodies, mid, end, level + 1, 2 * node + 1);
 }
@@ -137,9 +137,9 @@ void ContactSolver::order(std::span<const SolverBody> bodies) {
   for (int l = depth_; l > 0; --l)
     levelStart_[static_cast<std::size_t>(l) - 1] = levelStart_[static_cast<std::size_t>(l)] + (std::size_t{1} << l);
   const std::size_t nParts = partCount();
-  // the tree: the bodies bisected down to the leaves, byX_ then holding them leaf by leaf
-  byX_.resize(nb);
-  for (std::size_t i = 0; i < nb; ++i) byX_[i] = {0.0, static_cast<std::uint32_t>(i)};
+  // the tree: the bodies bisected down to the leaves, byLeaf_ then holding them leaf by leaf
+  byLeaf_.resize(nb);
+  for (std::size_t i = 0; i < nb; ++i) byLeaf_[i] = {0.0, static_cast<std::uint32_t>(i)};
   leafOf_.resize(nb);
   leafStart_.resize(leaves + 1);
   bisect(bodies, 0, nb, 0, 0);
@@ -445,10 +445,10 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   // calls f(part) for the nodes of a level that `worker` of this process takes: of all the level's nodes
   // (forShare: work every process does) or of the process's own (forOwn: the iterations, which the
   // processes divide)
-  const int ranks = exchange_ ? exchange_->size() : 1, me = exchange_ ? exchange_->rank() : 0;
+  const int ranks = processes_ ? processes_->size() : 1, me = processes_ ? processes_->rank() : 0;
   const auto forRange = [&](int worker, int level, std::size_t first, std::size_t end, const auto& f) {
     const std::size_t n = end - first;
-    for (std::size_t k = first + firstOf(worker, workers, n); k < first + firstOf(worker + 1, workers, n); ++k)
+    for (std::size_t k = first + firstShare(worker, workers, n); k < first + firstShare(worker + 1, workers, n); ++k)
       f(levelStart(level) + k);
   };
   const auto forShare = [&](int worker, int level, const auto& f) {
@@ -456,7 +456,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   };
   const auto forOwn = [&](int worker, int level, const auto& f) {
     const std::size_t n = std::size_t{1} << level;
-    forRange(worker, level, firstOf(me, ranks, n), firstOf(me + 1, ranks, n), f);
+    forRange(worker, level, firstShare(me, ranks, n), firstShare(me + 1, ranks, n), f);
   };
   const auto setUp = [&](int worker) {
     // the points' bodies, compact (each thread reads its share of the points once; the ordering then
@@ -488,7 +488,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     // of its own, always zero; each part's points spread by its thread
     forShare(worker, depth_, [&](std::size_t leaf) {
       for (std::size_t k = leafStart_[leaf]; k < leafStart_[leaf + 1]; ++k) {
-        const std::uint32_t i = byX_[k].second, s = slot_[i];
+        const std::uint32_t i = byLeaf_[k].second, s = slot_[i];
         v_[s] = narrow(bodies[i].v);
         w_[s] = narrow(bodies[i].w);
         pv_[s] = narrow(bodies[i].pv);
@@ -630,8 +630,8 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       const Vec3 tangential(static_cast<double>(tx), static_cast<double>(ty), static_cast<double>(tz));
       rowImpulse_[k] = impulse;
       sum += static_cast<double>(ln);
-      // (into the slots' double velocities: each half's slots lie apart from the other's, so the two
-      // threads never write one cache line; the friction acts at its own arms)
+      // (into the slots' double velocities: each leaf's slots lie apart from the others', so two threads
+      // never write one cache line; the friction acts at its own arms)
       const Vec3 moment = in.frictionOffset.cross(tangential);
       if (in.a != kFixed) {
         const SolverBody& a = bodies[in.a];
@@ -738,7 +738,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     // the velocities and pseudo velocities back to the bodies, each leaf's by its thread
     forShare(worker, depth_, [&](std::size_t leaf) {
       for (std::size_t k = leafStart_[leaf]; k < leafStart_[leaf + 1]; ++k) {
-        const std::uint32_t i = byX_[k].second, s = slot_[i];
+        const std::uint32_t i = byLeaf_[k].second, s = slot_[i];
         bodies[i].v = dv_[s];
         bodies[i].w = dw_[s];
         bodies[i].pv = wide(pv_[s]);
@@ -769,12 +769,12 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
 
 template <class T, class Range>
 void ContactSolver::shareLevel(std::vector<T>& data, int level, const Range& of) {
-  const int ranks = exchange_->size();
+  const int ranks = processes_->size();
   const std::size_t n = std::size_t{1} << level;
   shareOffset_.resize(static_cast<std::size_t>(ranks));
   shareCount_.resize(static_cast<std::size_t>(ranks));
   for (int r = 0; r < ranks; ++r) {
-    const std::size_t a = firstOf(r, ranks, n), b = firstOf(r + 1, ranks, n);
+    const std::size_t a = firstShare(r, ranks, n), b = firstShare(r + 1, ranks, n);
     const auto ri = static_cast<std::size_t>(r);
     shareOffset_[ri] = shareCount_[ri] = 0;
     if (a == b) continue;
@@ -782,7 +782,7 @@ void ContactSolver::shareLevel(std::vector<T>& data, int level, const Range& of)
     shareOffset_[ri] = first * sizeof(T);
     shareCount_[ri] = (end - first) * sizeof(T);
   }
-  exchange_->share(std::as_writable_bytes(std::span<T>(data)), shareOffset_, shareCount_);
+  processes_->share(std::as_writable_bytes(std::span<T>(data)), shareOffset_, shareCount_);
 }
 
 void ContactSolver::saveWarmStart(StateArchive& archive) const {

@@ -109,7 +109,7 @@ class ContactSolver {
   /// tree are divided among the processes as among threads, and after each level every process hands what
   /// its nodes changed to the others. Every one returns the velocities and impulses of one process alone,
   /// bit for bit.
-  void setProcesses(ProcessGroup* processes) { exchange_ = processes; }
+  void setProcesses(ProcessGroup* processes) { processes_ = processes; }
 
   /// Sum of the normal impulses applied in the last solve [N s].
   [[nodiscard]] double totalNormalImpulse() const { return totalNormalImpulse_; }
@@ -172,14 +172,11 @@ class ContactSolver {
     while (l > 0 && part >= levelStart(l - 1)) --l;
     return l;
   }
-  /// The first of the n nodes of a level that `worker` of `workers` takes (each takes a contiguous run, up
-  /// to the next one's first).
-  [[nodiscard]] static std::size_t firstOf(int worker, int workers, std::size_t n) { return firstShare(worker, workers, n); }
   /// After a level's nodes are solved (with processes): every process's share of `data` for that level,
   /// `of(part)` giving a part's range [first, end) of elements of data (a level's consecutive parts, consecutive ranges).
   template <class T, class Range>
   void shareLevel(std::vector<T>& data, int level, const Range& of);
-  /// Splits byX_[begin, end) (the bodies of node `node` at `level`) at its median along the longest side
+  /// Splits byLeaf_[begin, end) (the bodies of node `node` at `level`) at its median along the longest side
   /// of the bodies' bounds, down to the leaves.
   void bisect(std::span<const SolverBody> bodies, std::size_t begin, std::size_t end, int level, std::size_t node);
   static constexpr int kMaxDepth = 8;
@@ -228,7 +225,7 @@ class ContactSolver {
   std::vector<std::vector<std::uint32_t>> rankStart_;  // per part (spread() runs for several parts at once)
   std::vector<std::size_t> parts_;     // per part: its first row (and the end)
   std::vector<std::uint32_t> leafOf_;  // per solver body: its leaf
-  std::vector<std::size_t> leafStart_;  // per leaf: its first body in byX_ (and the end)
+  std::vector<std::size_t> leafStart_;  // per leaf: its first body in byLeaf_ (and the end)
   std::vector<std::uint32_t> slot_;    // per solver body: its entry in the velocity arrays
   std::vector<std::uint32_t> leafNext_;  // (ordering scratch: per leaf, its next slot)
   std::vector<std::size_t> partNext_;    // (ordering scratch: per part, its next row)
@@ -236,7 +233,7 @@ class ContactSolver {
   std::vector<std::uint32_t> slotBegin_, slotEnd_;  // per part: the range of its bodies' slots
   std::vector<std::uint8_t> isFixed_;  // per slot: a part's fixed side
   std::size_t slots_ = 0;
-  std::vector<std::pair<double, std::uint32_t>> byX_;  // bodies, leaf by leaf (sort keys: the cut's axis)
+  std::vector<std::pair<double, std::uint32_t>> byLeaf_;  // bodies, leaf by leaf (sort keys: the cut's axis)
   SpinBarrier barrier_;
   // velocities of the solver bodies and of each part's fixed side (always zero)
   std::vector<V4> v_, w_, pv_, pw_;
@@ -245,7 +242,7 @@ class ContactSolver {
   std::vector<double> normalSum_;     // per part: the normal impulses
   std::array<std::vector<std::uint8_t>, 2> moved_;  // per part: whether a position sweep moved (two sweeps' worth)
   std::vector<Vec3> rowImpulse_;     // per row: its impulse (impulses_ by input point)
-  ProcessGroup* exchange_ = nullptr;
+  ProcessGroup* processes_ = nullptr;
   std::vector<std::size_t> shareOffset_, shareCount_;  // (shareLevel's ranges, per process)
   std::vector<std::uint64_t> cacheKeys_;
   std::vector<Cached> cache_;

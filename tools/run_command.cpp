@@ -106,10 +106,10 @@ int run(const RunArgs& args) {
 #if VOLPAR_HAS_MPI
   // (by default the machine's hardware threads, divided among the processes on it)
   world.setThreads(args.threads > 0 ? args.threads : std::max(1, defaultThreads() / mpi.localSize()));
-  std::optional<MpiProcessGroup> exchange;
+  std::optional<MpiProcessGroup> processes;
   if (mpi.size() > 1) {
-    exchange.emplace(MPI_COMM_WORLD);
-    world.setProcesses(&*exchange);
+    processes.emplace(MPI_COMM_WORLD);
+    world.setProcesses(&*processes);
   }
 #else
   world.setThreads(args.threads > 0 ? args.threads : defaultThreads());
@@ -190,7 +190,7 @@ int run(const RunArgs& args) {
         .field("threads", world.settings().threads)
 #if VOLPAR_HAS_MPI
         .field("processes", mpi.size())
-        .field("solver_exchange_bytes", exchange ? exchange->bytesReceived() : std::size_t{0})
+        .field("solver_exchange_bytes", processes ? processes->bytesReceived() : std::size_t{0})
 #endif
         .field("simulated_seconds", world.time())
         .field("energy_start", s.energyStart.total())
@@ -242,7 +242,7 @@ int run(const RunArgs& args) {
 #if VOLPAR_HAS_MPI
     if (mpi.size() > 1)
       std::printf("processes    %d sharing the contact solver, %.3g MB of its exchanges received by process 0\n", mpi.size(),
-                  static_cast<double>(exchange->bytesReceived()) / 1e6);
+                  static_cast<double>(processes->bytesReceived()) / 1e6);
 #endif
     std::printf("stages       integrate velocities %.3f s, solver %.3f s, integrate positions %.3f s, broadphase %.3f s, "
                 "particle contacts %.3f s, narrow phase %.3f s\n",

@@ -19,12 +19,12 @@ class ProcessGroup {
   /// Makes `data` the same on every process: the bytes [offset[r], offset[r] + count[r]) from process r
   /// (per process, in bytes; the ranges do not overlap). Called by every process with the same ranges.
   virtual void share(std::span<std::byte> data, std::span<const std::size_t> offset, std::span<const std::size_t> count) = 0;
-  /// Every process's `mine`, one after another in process order, into `all`; `ends[r]`: where process r's end.
-  virtual void gather(std::span<const std::byte> mine, std::vector<std::byte>& all, std::vector<std::size_t>& ends) = 0;
+  /// Every process's `mine`, one after another in process order, into `all`.
+  virtual void gather(std::span<const std::byte> mine, std::vector<std::byte>& all) = 0;
 };
 
 // A stage's results as bytes for gather(): vectors (their length, then their elements) and single values,
-// read back in the order written. (Plain data only: the processes are copies of one program on one kind of
+// read back in the order written (each process's bytes then tell where they end). (Plain data only: the processes are copies of one program on one kind of
 // machine, so the bytes mean the same on every one.)
 template <class T>
 void appendBytes(std::vector<std::byte>& to, const std::vector<T>& v) {
@@ -35,7 +35,7 @@ void appendBytes(std::vector<std::byte>& to, const std::vector<T>& v) {
   to.insert(to.end(), data, data + n * sizeof(T));
 }
 template <class T>
-void appendValue(std::vector<std::byte>& to, const T& value) {
+void appendBytes(std::vector<std::byte>& to, const T& value) {
   const auto* data = reinterpret_cast<const std::byte*>(&value);
   to.insert(to.end(), data, data + sizeof(T));
 }
@@ -49,7 +49,7 @@ void readBytes(const std::byte*& from, std::vector<T>& v) {
   from += n * sizeof(T);
 }
 template <class T>
-void readValue(const std::byte*& from, T& value) {
+void readBytes(const std::byte*& from, T& value) {
   std::memcpy(static_cast<void*>(&value), from, sizeof(T));
   from += sizeof(T);
 }
