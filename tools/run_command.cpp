@@ -6,6 +6,7 @@
 #include <csignal>
 #include <cstdio>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -71,18 +72,35 @@ std::string resumedName(const std::string& resumed, std::int64_t step) {
   return stem + "-from-" + std::to_string(step) + ".h5";
 }
 
+#if !VOLPAR_HAS_MPI
+/// How many processes an MPI launcher started this one among (Open MPI's mpirun, or a PMI launcher such as
+/// MPICH's or Slurm's); 1 when none did.
+int launchedProcesses() {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"})
+    if (const char* value = std::getenv(name)) return std::max(1, std::atoi(value));
+  return 1;
+}
+#endif
+
 }  // namespace
 
 int run(const RunArgs& args) {
 #if VOLPAR_HAS_MPI
-  // under mpirun: every process builds and steps the whole world and they share the contact solver's
-  // iterations; process 0 alone writes the trajectory and reports (docs/distributed.md). The others' output
+  // under mpirun: every process builds and steps the whole world and they share the narrow phase and the
+  // contact solver's iterations; process 0 alone writes the trajectory and reports (docs/distributed.md). The others' output
   // goes nowhere: they read the same inputs and so meet the same errors, which process 0 reports.
   const MpiSession mpi;
   if (mpi.rank() != 0) {
     const int null = ::open("/dev/null", O_WRONLY);
     if (null >= 0) ::dup2(null, STDOUT_FILENO), ::dup2(null, STDERR_FILENO), ::close(null);
   }
+#else
+  // (without MPI, processes started together would each run the whole scene and write the same file)
+  if (const int processes = launchedProcesses(); processes > 1)
+    return fail(Error{"", 0, 0,
+                      "this volpar was built without MPI, but an MPI launcher started it as one of " + std::to_string(processes) +
+                          " processes, each of which would run the whole scene and write the same file; expected one "
+                          "process, or a volpar built with -DVOLPAR_MPI=ON (the dev preset; docs/distributed.md)"});
 #endif
   if (args.scene.empty() && args.resume.empty()) return fail(Error{"", 0, 0, "expected a scene file, or --resume FILE"});
   // a resumed run: the scene as it was run, from the trajectory, and the state of its checkpoint
