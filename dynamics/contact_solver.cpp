@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #if defined(__SSE2__)
@@ -466,6 +467,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     barrier_.wait();
     if (worker == 0) {
       order(bodies);
+      if (ranks > 1) planHandovers();
       v_.resize(slots_);
       w_.resize(slots_);
       pv_.resize(slots_);
@@ -673,19 +675,9 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     // the velocity iterations; the last one hands each batch's impulses to the bodies as it goes (level by
     // level: every body sums its impulses in the same order)
     const auto none = [](std::size_t) {};
-    // (with processes: after each level, every one's share of what its nodes changed, from worker 0 while
-    // the others wait)
-    const auto slots = [&](std::size_t part) { return std::pair{std::size_t{slotBegin_[part]}, std::size_t{slotEnd_[part]}}; };
-    const auto lanes = [&](std::size_t part) { return std::pair{posBase_[part], posBase_[part + 1]}; };
-    const auto rows = [&](std::size_t part) { return std::pair{parts_[part], parts_[part + 1]}; };
-    const auto one = [&](std::size_t part) { return std::pair{part, part + 1}; };
-    const auto shareFinished = [&](int l) {
-      shareLevel(dv_, l, slots);
-      shareLevel(dw_, l, slots);
-      shareLevel(nextCache_, l, lanes);
-      shareLevel(rowImpulse_, l, rows);
-      shareLevel(normalSum_, l, one);
-    };
+    // (with processes: after each level, the velocities of the bodies other processes' nodes touch too, as
+    // the level's nodes left them, from worker 0 while the others wait)
+    const auto handsOver = [&](int l) { return ranks > 1 && !boundary_[static_cast<std::size_t>(l)].index.empty(); };
     for (int it = 0; it < settings_.iterations; ++it) {
       const bool last = it + 1 == settings_.iterations;
       for (int l = depth_; l >= 0; --l) {
@@ -694,11 +686,11 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
           else velocityPart(part, none);
         });
         barrier_.wait();
-        if (ranks > 1) {
+        if (handsOver(l)) {
           if (worker == 0) {
-            shareLevel(v_, l, slots);
-            shareLevel(w_, l, slots);
-            if (last) shareFinished(l);
+            Handover& h = boundary_[static_cast<std::size_t>(l)];
+            if (last) handOver(h, v_, w_, dv_, dw_);
+            else handOver(h, v_, w_);
           }
           barrier_.wait();
         }
@@ -710,8 +702,8 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
           for (std::size_t j = 0; j < batches_[part].batches.size(); ++j) normalSum_[part] += finish(part, j);
         });
         barrier_.wait();
-        if (ranks > 1) {
-          if (worker == 0) shareFinished(l);
+        if (handsOver(l)) {
+          if (worker == 0) handOver(boundary_[static_cast<std::size_t>(l)], dv_, dw_);
           barrier_.wait();
         }
       }
@@ -724,16 +716,40 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       for (int l = depth_; l >= 0; --l) {
         forOwn(worker, l, [&](std::size_t part) { m[part] = positionPart(part) ? 1 : 0; });
         barrier_.wait();
-        if (ranks > 1) {
-          if (worker == 0) {
-            shareLevel(pv_, l, slots);
-            shareLevel(pw_, l, slots);
-            shareLevel(m, l, one);
-          }
+        if (handsOver(l)) {
+          if (worker == 0) handOver(boundary_[static_cast<std::size_t>(l)], pv_, pw_);
           barrier_.wait();
         }
       }
-      if (std::none_of(m.begin(), m.end(), [](std::uint8_t x) { return x != 0; })) break;
+      if (ranks > 1) {
+        // (whether any process's nodes moved: each process's own flags, then one share of the answers)
+        if (worker == 0) {
+          const auto mine = static_cast<std::size_t>(me);
+          std::uint8_t any = 0;
+          for (std::size_t k = partsOf_.start[mine]; k < partsOf_.start[mine + 1]; ++k) any |= m[partsOf_.index[k]];
+          movedBy_[mine] = any;
+          shareOffset_.resize(static_cast<std::size_t>(ranks));
+          shareCount_.assign(static_cast<std::size_t>(ranks), 1);
+          for (std::size_t r = 0; r < shareOffset_.size(); ++r) shareOffset_[r] = r;
+          processes_->share(std::as_writable_bytes(std::span<std::uint8_t>(movedBy_)), shareOffset_, shareCount_);
+        }
+        barrier_.wait();
+        if (std::none_of(movedBy_.begin(), movedBy_.end(), [](std::uint8_t x) { return x != 0; })) break;
+      } else if (std::none_of(m.begin(), m.end(), [](std::uint8_t x) { return x != 0; })) {
+        break;
+      }
+    }
+    // (with processes: every process's final velocities of the bodies its nodes alone touch, and the
+    // impulses of its rows, for every process to hold what one process alone would)
+    if (ranks > 1) {
+      if (worker == 0) {
+        planLanes();
+        handOver(interior_, dv_, dw_, pv_, pw_);
+        handOver(rows_, rowImpulse_);
+        handOver(lanes_, nextCache_);
+        handOver(partsOf_, normalSum_);
+      }
+      barrier_.wait();
     }
     // the velocities and pseudo velocities back to the bodies, each leaf's by its thread
     forShare(worker, depth_, [&](std::size_t leaf) {
@@ -767,22 +783,125 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   std::swap(cache_, nextCache_);
 }
 
-template <class T, class Range>
-void ContactSolver::shareLevel(std::vector<T>& data, int level, const Range& of) {
+void ContactSolver::planHandovers() {
   const int ranks = processes_->size();
-  const std::size_t n = std::size_t{1} << level;
+  const auto nRanks = static_cast<std::size_t>(ranks);
+  // (each level's nodes in runs, process by process, as forOwn() takes them)
+  const auto eachOwn = [&](int level, int r, const auto& f) {
+    const std::size_t n = std::size_t{1} << level;
+    for (std::size_t k = firstShare(r, ranks, n); k < firstShare(r + 1, ranks, n); ++k) f(levelStart(level) + k);
+  };
+  // which processes' nodes touch each slot (the rows of a part are scratch_[parts_[part]] on, until spread()
+  // reorders them into order_)
+  slotProcess_.assign(slots_, -1);
+  for (int l = 0; l <= depth_; ++l) {
+    for (int r = 0; r < ranks; ++r) {
+      eachOwn(l, r, [&](std::size_t part) {
+        for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) {
+          const auto [a, b] = ab_[scratch_[k]];
+          for (const std::uint32_t body : {a, b}) {
+            if (body == kFixed) continue;
+            std::int32_t& p = slotProcess_[slot_[body]];
+            p = p == -1 || p == r ? r : -2;
+          }
+        }
+      });
+    }
+  }
+  boundary_.resize(static_cast<std::size_t>(depth_) + 1);
+  listed_.assign(slots_, 0);
+  for (int l = 0; l <= depth_; ++l) {
+    Handover& h = boundary_[static_cast<std::size_t>(l)];
+    h.index.clear();
+    h.start.resize(nRanks + 1);
+    for (int r = 0; r < ranks; ++r) {
+      h.start[static_cast<std::size_t>(r)] = h.index.size();
+      eachOwn(l, r, [&](std::size_t part) {
+        for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) {
+          const auto [a, b] = ab_[scratch_[k]];
+          for (const std::uint32_t body : {a, b}) {
+            if (body == kFixed) continue;
+            const std::uint32_t s = slot_[body];
+            if (slotProcess_[s] != -2 || listed_[s] == l + 1) continue;
+            listed_[s] = static_cast<std::uint8_t>(l + 1);
+            h.index.push_back(s);
+          }
+        }
+      });
+    }
+    h.start[nRanks] = h.index.size();
+  }
+  // the slots one process alone touches, by process; each process's rows and parts
+  interior_.start.assign(nRanks + 1, 0);
+  for (std::size_t s = 0; s < slots_; ++s)
+    if (slotProcess_[s] >= 0) ++interior_.start[static_cast<std::size_t>(slotProcess_[s]) + 1];
+  for (std::size_t r = 0; r < nRanks; ++r) interior_.start[r + 1] += interior_.start[r];
+  interior_.index.resize(interior_.start[nRanks]);
+  shareCount_.assign(interior_.start.begin(), interior_.start.end() - 1);  // (as the next entry of each)
+  for (std::size_t s = 0; s < slots_; ++s)
+    if (slotProcess_[s] >= 0) interior_.index[shareCount_[static_cast<std::size_t>(slotProcess_[s])]++] = static_cast<std::uint32_t>(s);
+  rows_.index.clear();
+  partsOf_.index.clear();
+  rows_.start.resize(nRanks + 1);
+  partsOf_.start.resize(nRanks + 1);
+  for (int r = 0; r < ranks; ++r) {
+    rows_.start[static_cast<std::size_t>(r)] = rows_.index.size();
+    partsOf_.start[static_cast<std::size_t>(r)] = partsOf_.index.size();
+    for (int l = depth_; l >= 0; --l) {
+      eachOwn(l, r, [&](std::size_t part) {
+        partsOf_.index.push_back(static_cast<std::uint32_t>(part));
+        for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) rows_.index.push_back(static_cast<std::uint32_t>(k));
+      });
+    }
+  }
+  rows_.start[nRanks] = rows_.index.size();
+  partsOf_.start[nRanks] = partsOf_.index.size();
+  movedBy_.assign(nRanks, 0);
+}
+
+void ContactSolver::planLanes() {
+  const auto nRanks = static_cast<std::size_t>(processes_->size());
+  lanes_.index.clear();
+  lanes_.start.resize(nRanks + 1);
+  for (std::size_t r = 0; r < nRanks; ++r) {
+    lanes_.start[r] = lanes_.index.size();
+    for (std::size_t k = partsOf_.start[r]; k < partsOf_.start[r + 1]; ++k) {
+      const std::uint32_t part = partsOf_.index[k];
+      const std::vector<std::uint32_t>& sorted = batches_[part].sorted;
+      for (std::size_t j = 0; j < sorted.size(); ++j)
+        if (sorted[j] != kNoRow) lanes_.index.push_back(static_cast<std::uint32_t>(posBase_[part] + j));
+    }
+  }
+  lanes_.start[nRanks] = lanes_.index.size();
+}
+
+template <class... T>
+void ContactSolver::handOver(const Handover& h, std::vector<T>&... arrays) {
+  if (h.index.empty()) return;  // (the same lists on every process: none of them shares)
+  const int ranks = processes_->size(), me = processes_->rank();
+  constexpr std::size_t per = (sizeof(T) + ...);
+  handoverBytes_.resize(h.index.size() * per);
   shareOffset_.resize(static_cast<std::size_t>(ranks));
   shareCount_.resize(static_cast<std::size_t>(ranks));
-  for (int r = 0; r < ranks; ++r) {
-    const std::size_t a = firstShare(r, ranks, n), b = firstShare(r + 1, ranks, n);
-    const auto ri = static_cast<std::size_t>(r);
-    shareOffset_[ri] = shareCount_[ri] = 0;
-    if (a == b) continue;
-    const std::size_t first = of(levelStart(level) + a).first, end = of(levelStart(level) + b - 1).second;
-    shareOffset_[ri] = first * sizeof(T);
-    shareCount_[ri] = (end - first) * sizeof(T);
+  for (std::size_t r = 0; r < static_cast<std::size_t>(ranks); ++r) {
+    shareOffset_[r] = h.start[r] * per;
+    shareCount_[r] = (h.start[r + 1] - h.start[r]) * per;
   }
-  processes_->share(std::as_writable_bytes(std::span<T>(data)), shareOffset_, shareCount_);
+  const auto mine = static_cast<std::size_t>(me);
+  std::byte* out = handoverBytes_.data() + shareOffset_[mine];
+  for (std::size_t k = h.start[mine]; k < h.start[mine + 1]; ++k) {
+    const std::uint32_t i = h.index[k];
+    ((std::memcpy(out, static_cast<const void*>(&arrays[i]), sizeof(T)), out += sizeof(T)), ...);
+  }
+  processes_->share(handoverBytes_, shareOffset_, shareCount_);
+  for (std::size_t r = 0; r < static_cast<std::size_t>(ranks); ++r) {
+    if (r == mine) continue;
+    const std::byte* in = handoverBytes_.data() + shareOffset_[r];
+    for (std::size_t k = h.start[r]; k < h.start[r + 1]; ++k) {
+      const std::uint32_t i = h.index[k];
+      ((std::memcpy(static_cast<void*>(&arrays[i]), in, sizeof(T)), in += sizeof(T)), ...);
+    }
+  }
 }
 
 void ContactSolver::saveWarmStart(StateArchive& archive) const {

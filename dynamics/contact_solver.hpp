@@ -172,10 +172,6 @@ class ContactSolver {
     while (l > 0 && part >= levelStart(l - 1)) --l;
     return l;
   }
-  /// After a level's nodes are solved (with processes): every process's share of `data` for that level,
-  /// `of(part)` giving a part's range [first, end) of elements of data (a level's consecutive parts, consecutive ranges).
-  template <class T, class Range>
-  void shareLevel(std::vector<T>& data, int level, const Range& of);
   /// Splits byLeaf_[begin, end) (the bodies of node `node` at `level`) at its median along the longest side
   /// of the bodies' bounds, down to the leaves.
   void bisect(std::span<const SolverBody> bodies, std::size_t begin, std::size_t end, int level, std::size_t node);
@@ -243,7 +239,30 @@ class ContactSolver {
   std::array<std::vector<std::uint8_t>, 2> moved_;  // per part: whether a position sweep moved (two sweeps' worth)
   std::vector<Vec3> rowImpulse_;     // per row: its impulse (impulses_ by input point)
   ProcessGroup* processes_ = nullptr;
-  std::vector<std::size_t> shareOffset_, shareCount_;  // (shareLevel's ranges, per process)
+  std::vector<std::size_t> shareOffset_, shareCount_;  // (the shares' ranges in bytes, per process)
+  /// With processes: entries of some arrays that each process hands the others, process r's
+  /// index[start[r]] up to index[start[r + 1]] (the same lists on every process, made from the same rows).
+  struct Handover {
+    std::vector<std::uint32_t> index;
+    std::vector<std::size_t> start;
+  };
+  /// Plans this solve's handovers (below) from the tree and the rows.
+  void planHandovers();
+  /// The real lanes of each process's parts (lanes_), once they are coloured.
+  void planLanes();
+  /// Hands every process the values the others hold at their entries of `h`, of each array in turn.
+  template <class... T>
+  void handOver(const Handover& h, std::vector<T>&... arrays);
+  /// per level: the slots of the bodies whose rows lie in the nodes of more than one process, that this
+  /// level's nodes touch (each such body's velocity, after every level that changes it, goes to every
+  /// process, so the next node to read it reads its last value whichever process solves that node)
+  std::vector<Handover> boundary_;
+  Handover interior_;  // the slots of the bodies the nodes of one process alone touch, handed over at the end
+  Handover rows_, partsOf_, lanes_;  // each process's rows, parts and their real lanes, at the end
+  std::vector<std::int32_t> slotProcess_;  // (per slot: the process whose nodes touch it; -1 none, -2 several)
+  std::vector<std::uint8_t> listed_;       // (per slot: the level + 1 whose list holds it)
+  std::vector<std::uint8_t> movedBy_;      // per process: whether a node of its moved in a position sweep
+  std::vector<std::byte> handoverBytes_;
   std::vector<std::uint64_t> cacheKeys_;
   std::vector<Cached> cache_;
   std::vector<Cached> nextCache_;

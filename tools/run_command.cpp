@@ -1,5 +1,6 @@
 // volpar run: a scene headless to an H5MD trajectory.
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -81,6 +82,13 @@ int launchedProcesses() {
   return 1;
 }
 #endif
+
+/// The most memory this process has held resident [bytes] (getrusage: kibibytes on Linux).
+std::size_t maxResidentBytes() {
+  rusage usage{};
+  if (getrusage(RUSAGE_SELF, &usage) != 0 || usage.ru_maxrss < 0) return 0;
+  return static_cast<std::size_t>(usage.ru_maxrss) * 1024;
+}
 
 }  // namespace
 
@@ -206,9 +214,11 @@ int run(const RunArgs& args) {
         .field("step_seconds", s.stepSeconds)
         .field("steps_per_second", s.stepsPerSecond)
         .field("threads", world.settings().threads)
+        .field("max_resident_bytes", maxResidentBytes())
 #if VOLPAR_HAS_MPI
         .field("processes", mpi.size())
-        .field("solver_exchange_bytes", processes ? processes->bytesReceived() : std::size_t{0})
+        .field("exchanges", processes ? processes->calls() : std::size_t{0})
+        .field("exchange_bytes", processes ? processes->bytesReceived() : std::size_t{0})
 #endif
         .field("simulated_seconds", world.time())
         .field("energy_start", s.energyStart.total())

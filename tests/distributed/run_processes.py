@@ -5,8 +5,8 @@ usage: run_processes.py VOLPAR SCENE STEPS WORKDIR [--processes 2,3]
 
 Runs SCENE for STEPS steps without MPI (one thread), then under mpirun with each number of processes (one
 thread each, oversubscribed), and compares each trajectory with the first with h5diff (every dataset and
-attribute). Each MPI run must report its processes and bytes received through the solver's exchanges (the
-processes did divide the solver's work), and write no file but process 0's.
+attribute). Each MPI run must report its processes and bytes received through the exchanges (the
+processes did divide the work), and write no file but process 0's.
 
 With --kill-after FRAMES instead: process 0 kills itself (SIGKILL) after writing FRAMES frames of an MPI run
 of 2 processes; the run must end with a non-zero status within the timeout, every process gone, and the
@@ -129,9 +129,9 @@ def main():
                 failures.append("%d processes: status %d\n%s%s" % (n, r.returncode, r.stdout, r.stderr))
                 continue
             report = json.loads(r.stdout)
-            if report.get("processes") != n or not report.get("solver_exchange_bytes", 0) > 0:
+            if report.get("processes") != n or not report.get("exchange_bytes", 0) > 0:
                 failures.append("%d processes: the report says %s processes and %s bytes exchanged" %
-                                (n, report.get("processes"), report.get("solver_exchange_bytes")))
+                                (n, report.get("processes"), report.get("exchange_bytes")))
             # (the files of one process's run, renamed: nothing more from the other processes)
             files = sorted(os.path.basename(f) for f in glob.glob(os.path.join(a.workdir, "%s-%d*" % (name, n))))
             expected = sorted(os.path.basename(f).replace("%s-1" % name, "%s-%d" % (name, n))
@@ -142,8 +142,8 @@ def main():
             if d.returncode != 0:
                 failures.append("%d processes: h5diff finds differences from one process:\n%s" % (n, d.stdout[-3000:]))
             else:
-                print("%d processes: the same trajectory as one process (h5diff), %d bytes of solver exchanges "
-                      "received by process 0" % (n, report["solver_exchange_bytes"]))
+                print("%d processes: the same trajectory as one process (h5diff), %d bytes of exchanges "
+                      "received by process 0" % (n, report["exchange_bytes"]))
     if failures:
         sys.exit("\n".join(failures))
 

@@ -1,0 +1,137 @@
+#!/usr/bin/python3
+"""Time per step of pile-N against processes and threads (docs/distributed.md, "Scaling").
+
+usage: scaling.py VOLPAR [--sizes N,...] [--layouts PxT,...] [--settle S] [--steps K] [--repeats R] [--dir DIR]
+
+VOLPAR is a volpar built with VOLPAR_MPI=ON. For each size N (a pile of kx x ky x kz crates, the pile-1000
+scene of scenes/bench with more columns and layers: N = 8000 is 20 x 20 x 20; a size may also be given as
+KXxKYxKZ), the script writes the scene into DIR, runs it for S steps on one process to a checkpoint (the pile
+collapsed onto itself, so the steps measured have their contacts), and then times K steps resumed from that
+checkpoint with every layout P x T (P processes of T threads, under mpirun when P > 1), the layouts taking
+turns, R rounds. It prints per size and layout the median time per step and of each stage, the exchanges and
+the bytes process 0 received per step, and the most memory process 0 held (max_resident_bytes). Every run must end
+with the same energy as the others: the trajectory does not depend on the layout.
+"""
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+
+SCENE = """# pile-{n} (tools/scripts/scaling.py): the pile of scenes/bench/pile-1000.yaml with {kx} x {ky} x {kz} crates
+name: pile-{n}
+dt: 0.004166666666666667
+steps: 2000
+solver: {{iterations: 10}}
+output: {{every: 20}}
+materials:
+  crate: {{density: 1000, restitution: 0.1, friction: 0.5}}
+planes:
+  - {{normal: [0, 0, 1], offset: 0, material: crate}}
+  - {{normal: [1, 0, 0], offset: {wx}, material: crate}}
+  - {{normal: [-1, 0, 0], offset: {wx}, material: crate}}
+  - {{normal: [0, 1, 0], offset: {wy}, material: crate}}
+  - {{normal: [0, -1, 0], offset: {wy}, material: crate}}
+bodies:
+  - name: crate
+    shape: {{box: {{size: [0.3, 0.3, 0.3]}}}}
+    fill: {{lattice: cubic, radius: 0.05, spacing: 0.1}}
+    particle_mass: 0.1
+    material: crate
+    position: [{x0}, {y0}, 0.5]
+    repeat:
+      count: [{kx}, {ky}, {kz}]
+      spacing: [0.45, 0.45, 0.45]
+      rotation_step: [{{axis: [0, 0, 1], angle: 0.37}}, {{axis: [1, 0, 0], angle: 0.11}}]
+"""
+
+MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
+
+
+def grid(size):
+    """(kx, ky, kz) of a size given as N (a cube) or KXxKYxKZ."""
+    if "x" in size:
+        k = [int(v) for v in size.split("x")]
+        if len(k) != 3 or min(k) < 1:
+            raise ValueError("a size KXxKYxKZ needs three positive counts: %r" % size)
+        return tuple(k)
+    n = int(size)
+    k = round(n ** (1.0 / 3.0))
+    if k < 1 or k ** 3 != n:
+        raise ValueError("a size N must be a cube (or give KXxKYxKZ): %r" % size)
+    return (k, k, k)
+
+
+def write_scene(path, kx, ky, kz):
+    n = kx * ky * kz
+    text = SCENE.format(n=n, kx=kx, ky=ky, kz=kz, wx=repr(-(0.45 * kx / 2 + 0.3)), wy=repr(-(0.45 * ky / 2 + 0.3)),
+                        x0=repr(-0.45 * (kx - 1) / 2), y0=repr(-0.45 * (ky - 1) / 2))
+    with open(path, "w") as f:
+        f.write(text)
+
+
+def run(command, env=None):
+    done = subprocess.run(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          env=dict(os.environ, **(env or {})))
+    if done.returncode != 0:
+        sys.exit("failed (%d): %s\n%s" % (done.returncode, " ".join(command), done.stderr[-4000:]))
+    return done.stdout
+
+
+def timed(volpar, checkpoint, steps, processes, threads):
+    """The report of one run of `steps` steps from the checkpoint."""
+    inner = [volpar, "run", "--resume", checkpoint, "--steps", str(steps), "--no-output", "--threads", str(threads),
+             "--json"]
+    command = inner if processes == 1 else ["mpirun", "-np", str(processes), "--oversubscribe", "--bind-to", "none"] + inner
+    return json.loads(run(command, MPI_ENV))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("volpar")
+    parser.add_argument("--sizes", default="8000")
+    parser.add_argument("--layouts", default="1x1,1x2,2x1")
+    parser.add_argument("--settle", type=int, default=480)
+    parser.add_argument("--steps", type=int, default=50)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--dir", default="build/scaling")
+    args = parser.parse_args()
+    os.makedirs(args.dir, exist_ok=True)
+    layouts = [tuple(int(v) for v in layout.split("x")) for layout in args.layouts.split(",")]
+    for size in args.sizes.split(","):
+        kx, ky, kz = grid(size)
+        n = kx * ky * kz
+        scene = os.path.join(args.dir, "pile-%d.yaml" % n)
+        write_scene(scene, kx, ky, kz)
+        settled = os.path.join(args.dir, "pile-%d-settle.h5" % n)
+        if not os.path.exists(settled):
+            run([args.volpar, "run", scene, "-o", settled, "--steps", str(args.settle), "--every", str(args.settle),
+                 "--checkpoint-every", str(args.settle)])
+        results = {layout: [] for layout in layouts}
+        for _ in range(args.repeats):
+            for layout in layouts:
+                results[layout].append(timed(args.volpar, settled, args.steps, *layout))
+        energies = {r["energy_end"] for runs in results.values() for r in runs}
+        if len(energies) != 1:
+            sys.exit("pile-%d: the layouts ended with different energies: %s" % (n, sorted(energies)))
+        print("pile-%d (%d bodies, %d particles), %d steps from step %d, median of %d:" %
+              (n, n, results[layouts[0]][0]["particles"], args.steps, args.settle, args.repeats))
+        stages = ["broadphase", "particle_contacts", "narrow_phase", "solver", "integrate_positions"]
+        print("| processes x threads | ms per step | " + " | ".join(stages) +
+              " | exchanges per step | kB received per step | MiB in process 0 |")
+        print("|---|---:|" + "---:|" * len(stages) + "---:|---:|---:|")
+        for layout in layouts:
+            runs = results[layout]
+            per_step = statistics.median(r["step_seconds"] for r in runs) / args.steps * 1e3
+            stage = [statistics.median(r["stage_seconds"][s] for r in runs) / args.steps * 1e3 for s in stages]
+            exchanges = statistics.median(r.get("exchanges", 0) for r in runs) / args.steps
+            received = statistics.median(r.get("exchange_bytes", 0) for r in runs) / args.steps / 1e3
+            memory = statistics.median(r["max_resident_bytes"] for r in runs) / 2 ** 20
+            print("| %d x %d | %.1f | %s | %.0f | %.0f | %.0f |" %
+                  (layout[0], layout[1], per_step, " | ".join("%.1f" % t for t in stage), exchanges, received, memory))
+
+
+if __name__ == "__main__":
+    main()
