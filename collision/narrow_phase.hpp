@@ -136,6 +136,13 @@ class NarrowPhase {
   std::vector<std::byte> mine_, all_;
   std::vector<std::size_t> shareOffset_, shareCount_;
   std::vector<Output> gathered_;
+  /// With processes: per group, the cache entry whose patches it takes over (kNoMatch: none); and each
+  /// process's first group (and the end), the groups divided in runs of equal estimated cost.
+  static constexpr std::uint32_t kNoMatch = 0xffffffffu;
+  std::vector<std::uint32_t> match_;
+  std::vector<std::size_t> groupStart_;
+  /// Finds each group's cache entry (match_) and divides the groups among the processes (groupStart_).
+  void divideGroups(const NarrowPhaseInput& in, const ContactSet& contacts);
   /// Every process's chunks, from each process's `count` chunks of chunks_, into gathered_; returns how many.
   std::size_t gatherChunks(std::size_t count);
   /// Every process's values of `values` for the contacts of its groups.

@@ -468,6 +468,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     if (worker == 0) {
       order(bodies);
       if (ranks > 1) planHandovers();
+      divideSetUp_ = ranks > 1 && !heavyPairs(bodies);
       v_.resize(slots_);
       w_.resize(slots_);
       pv_.resize(slots_);
@@ -654,30 +655,47 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   // then the nodes a level up, and so on to the root
   const auto iterate = [&](int worker) {
     setUp(worker);
+    // (with processes: after each level, the velocities of the bodies other processes' nodes touch too, as
+    // the level's nodes left them, from worker 0 while the others wait)
+    const auto handsOver = [&](int l) { return ranks > 1 && !boundary_[static_cast<std::size_t>(l)].index.empty(); };
+    // the nodes whose preparation and warm start this worker does: with processes its process's own, unless
+    // the exact solve of heavy islands needs every part's rows on every process
+    const auto forPrepared = [&](int l, const auto& f) {
+      if (divideSetUp_) forOwn(worker, l, f);
+      else forShare(worker, l, f);
+    };
     // every part prepared at once (the leaves warm started as they go, since they share no body); the other
     // nodes warm started after, level by level, so every body's velocity takes the warm-starting impulses in
     // the same order however many threads there are
     for (int l = depth_; l >= 0; --l)
-      forShare(worker, l, [&](std::size_t part) { colour(part), started_[part] = prepare(part, l == depth_ && settings_.warmStart); });
+      forPrepared(l, [&](std::size_t part) { colour(part), started_[part] = prepare(part, l == depth_ && settings_.warmStart); });
     barrier_.wait();
     if (settings_.warmStart) {
+      if (divideSetUp_ && handsOver(depth_)) {
+        if (worker == 0) handOver(boundary_[static_cast<std::size_t>(depth_)], v_, w_);
+        barrier_.wait();
+      }
       for (int l = depth_ - 1; l >= 0; --l) {
-        forShare(worker, l, [&](std::size_t part) {
+        forPrepared(l, [&](std::size_t part) {
           std::size_t count = 0;
           for (std::size_t j = 0; j < batches_[part].batches.size(); ++j) count += warmStart(part, j);
           started_[part] = count;
         });
         barrier_.wait();
+        if (divideSetUp_ && handsOver(l)) {
+          if (worker == 0) handOver(boundary_[static_cast<std::size_t>(l)], v_, w_);
+          barrier_.wait();
+        }
       }
     }
-    if (worker == 0) solveHeavyIslands();
+    if (worker == 0) {
+      if (divideSetUp_) heavyIslandsSolved_ = 0;  // (there are none: see heavyPairs())
+      else solveHeavyIslands();
+    }
     barrier_.wait();
     // the velocity iterations; the last one hands each batch's impulses to the bodies as it goes (level by
     // level: every body sums its impulses in the same order)
     const auto none = [](std::size_t) {};
-    // (with processes: after each level, the velocities of the bodies other processes' nodes touch too, as
-    // the level's nodes left them, from worker 0 while the others wait)
-    const auto handsOver = [&](int l) { return ranks > 1 && !boundary_[static_cast<std::size_t>(l)].index.empty(); };
     for (int it = 0; it < settings_.iterations; ++it) {
       const bool last = it + 1 == settings_.iterations;
       for (int l = depth_; l >= 0; --l) {
@@ -743,11 +761,12 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     // impulses of its rows, for every process to hold what one process alone would)
     if (ranks > 1) {
       if (worker == 0) {
+        if (divideSetUp_) shareLanes(points);
         planLanes();
         handOver(interior_, dv_, dw_, pv_, pw_);
         handOver(rows_, rowImpulse_);
         handOver(lanes_, nextCache_);
-        handOver(partsOf_, normalSum_);
+        handOver(partsOf_, normalSum_, started_);
       }
       barrier_.wait();
     }
@@ -857,6 +876,41 @@ void ContactSolver::planHandovers() {
   rows_.start[nRanks] = rows_.index.size();
   partsOf_.start[nRanks] = partsOf_.index.size();
   movedBy_.assign(nRanks, 0);
+}
+
+bool ContactSolver::heavyPairs(std::span<const SolverBody> bodies) const {
+  // (exactly the test solveHeavyIslands() makes of each row, from the same single-precision masses)
+  const double ratio = settings_.heavyIslandRatio;
+  if (!(ratio > 0.0) || settings_.heavyIslandRows <= 0) return false;
+  for (const auto& [a, b] : ab_) {
+    if (a == kFixed || b == kFixed) continue;
+    const auto ia = static_cast<double>(static_cast<float>(bodies[a].invMass));
+    const auto ib = static_cast<double>(static_cast<float>(bodies[b].invMass));
+    if (ia > 0.0 && ib > 0.0 && (ia >= ratio * ib || ib >= ratio * ia)) return true;
+  }
+  return false;
+}
+
+void ContactSolver::shareLanes(std::span<const ContactPointInput> points) {
+  // each process's parts' lanes (their rows in colour order), in the order of partsOf_; then the others'
+  // parts' warm-starting keys, from their rows' points
+  const int ranks = processes_->size();
+  const auto mine = static_cast<std::size_t>(processes_->rank());
+  lanesMine_.clear();
+  for (std::size_t k = partsOf_.start[mine]; k < partsOf_.start[mine + 1]; ++k)
+    appendBytes(lanesMine_, batches_[partsOf_.index[k]].sorted);
+  processes_->gather(lanesMine_, lanesAll_);
+  const std::byte* at = lanesAll_.data();
+  for (std::size_t r = 0; r < static_cast<std::size_t>(ranks); ++r) {
+    for (std::size_t k = partsOf_.start[r]; k < partsOf_.start[r + 1]; ++k) {
+      const std::uint32_t part = partsOf_.index[k];
+      std::vector<std::uint32_t>& sorted = r == mine ? lanesScratch_ : batches_[part].sorted;
+      readBytes(at, sorted);
+      if (r == mine) continue;
+      for (std::size_t j = 0; j < sorted.size(); ++j)
+        if (sorted[j] != kNoRow) keys_[posBase_[part] + j] = points[order_[sorted[j]]].key;
+    }
+  }
 }
 
 void ContactSolver::planLanes() {

@@ -118,6 +118,14 @@ class ContactSolver {
   void saveWarmStart(StateArchive& archive) const;
   /// Takes them back; false (with the reason in `reader`) where they do not fit together.
   bool restoreWarmStart(StateReader& reader);
+  /// The depth of the last solve's tree (2^depth leaves, at most 2^kMaxDepth) and its rows (contact
+  /// points) at a level of it (0: the root).
+  static constexpr int kMaxDepth = 8;
+  [[nodiscard]] int depth() const { return depth_; }
+  [[nodiscard]] std::size_t rowsAtLevel(int level) const {
+    const std::size_t first = levelStart(level), end = first + (std::size_t{1} << level);
+    return parts_[end] - parts_[first];
+  }
   /// Islands whose normal impulses the last solve found exactly (see SolverSettings::heavyIslandRatio).
   [[nodiscard]] std::size_t heavyIslandsSolved() const { return heavyIslandsSolved_; }
   /// The impulse [N s] each point of the last solve applied to its B side (A got the opposite), world.
@@ -175,7 +183,6 @@ class ContactSolver {
   /// Splits byLeaf_[begin, end) (the bodies of node `node` at `level`) at its median along the longest side
   /// of the bodies' bounds, down to the leaves.
   void bisect(std::span<const SolverBody> bodies, std::size_t begin, std::size_t end, int level, std::size_t node);
-  static constexpr int kMaxDepth = 8;
  public:
   /// The depth of the solving order's tree for a number of bodies (SolverSettings::bodiesPerLeaf).
   [[nodiscard]] static int depthFor(std::size_t bodies, int bodiesPerLeaf);
@@ -250,6 +257,15 @@ class ContactSolver {
   void planHandovers();
   /// The real lanes of each process's parts (lanes_), once they are coloured.
   void planLanes();
+  /// Whether a row joins two bodies whose masses differ by heavyIslandRatio or more (solveHeavyIslands()
+  /// then has islands to solve, from every part's rows).
+  [[nodiscard]] bool heavyPairs(std::span<const SolverBody> bodies) const;
+  /// With the set-up divided: every process's parts' lanes (the rows in colour order) and keys to every
+  /// process, for the warm start of the next solve.
+  void shareLanes(std::span<const ContactPointInput> points);
+  bool divideSetUp_ = false;  // whether this solve's processes each prepare their own nodes alone
+  std::vector<std::byte> lanesMine_, lanesAll_;
+  std::vector<std::uint32_t> lanesScratch_;
   /// Hands every process the values the others hold at their entries of `h`, of each array in turn.
   template <class... T>
   void handOver(const Handover& h, std::vector<T>&... arrays);

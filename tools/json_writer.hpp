@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <span>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -51,6 +52,13 @@ class JsonWriter {
       if (i) out_ << ", ";
       quote(v[i]);
     }
+    out_ << ']';
+    return *this;
+  }
+  JsonWriter& field(const std::string& k, std::span<const std::size_t> v) {
+    key(k);
+    out_ << '[';
+    for (std::size_t i = 0; i < v.size(); ++i) out_ << (i ? ", " : "") << v[i];
     out_ << ']';
     return *this;
   }

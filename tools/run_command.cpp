@@ -225,6 +225,7 @@ int run(const RunArgs& args) {
         .field("energy_end", s.energyEnd.total())
         .field("energy_change", change)
         .field("contacts", world.stats().contacts)
+        .field("solver_rows_by_level", std::span<const std::size_t>(world.stats().solverRowsByLevel))
         .field("connectors_broken", s.connectorsBroken)
         .field("bodies_created", s.bodiesCreated)
         .field("normals_recomputed", s.normalsRecomputed)

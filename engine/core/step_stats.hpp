@@ -53,6 +53,10 @@ struct StepStats {
   std::size_t contactPoints = 0;       ///< solver contact points (patches reduced to at most 4 points)
   std::size_t warmStarted = 0;         ///< of them, warm started from the previous step
   std::size_t heavyIslands = 0;        ///< islands whose normal impulses were solved exactly (mass ratios)
+  /// Solver contact points per level of the solver's tree, the root first (levels past its depth: 0).
+  /// With processes, a node's points are solved by one process: the upper levels are the solve's
+  /// critical path (docs/distributed.md).
+  std::array<std::size_t, 9> solverRowsByLevel{};
   std::size_t connectorsBroken = 0;    ///< rods and springs that broke this step
   std::size_t bodiesCreated = 0;       ///< fragments made by bodies breaking apart this step
 };

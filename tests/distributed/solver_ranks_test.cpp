@@ -1,7 +1,8 @@
 // The contact solver shared by MPI processes (run under mpirun with 1, 2 and 3 processes): every process
 // gets the velocities and impulses of one process alone, bit for bit, with one or two threads each, for a
-// deep tree (64 leaves) and a shallow one (2 leaves, fewer than the processes at 3); and without the
-// exchange the divided solve does differ, so the processes really did divide it.
+// deep tree (64 leaves) and a shallow one (2 leaves, fewer than the processes at 3), with and without an
+// island of very unequal masses (solved exactly); and without the exchange the divided solve does differ,
+// so the processes really did divide it.
 
 #include <gtest/gtest.h>
 #include <mpi.h>
@@ -33,17 +34,18 @@ bool same(const Solved& a, const Solved& b) {
   return true;
 }
 
-/// An exchange that divides the work as MPI's does but hands nothing over.
+/// An exchange that divides the work as MPI's does but hands no values over: its shares in place do
+/// nothing (its gathers, which carry how the others laid their rows out, go through).
 class Silent final : public ProcessGroup {
  public:
-  explicit Silent(const ProcessGroup& real) : rank_(real.rank()), size_(real.size()) {}
-  [[nodiscard]] int rank() const override { return rank_; }
-  [[nodiscard]] int size() const override { return size_; }
+  explicit Silent(ProcessGroup& real) : real_(real) {}
+  [[nodiscard]] int rank() const override { return real_.rank(); }
+  [[nodiscard]] int size() const override { return real_.size(); }
   void share(std::span<std::byte>, std::span<const std::size_t>, std::span<const std::size_t>) override {}
-  void gather(std::span<const std::byte>, std::vector<std::byte>&) override {}
+  void gather(std::span<const std::byte> mine, std::vector<std::byte>& all) override { real_.gather(mine, all); }
 
  private:
-  int rank_, size_;
+  ProcessGroup& real_;
 };
 
 class SolverRanks : public ::testing::TestWithParam<int> {};  // bodies per leaf
@@ -65,6 +67,20 @@ TEST_P(SolverRanks, EveryProcessGetsTheResultOfOne) {
       MPI_Allreduce(&bytes, &total, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
       EXPECT_GT(total, 0u);
     }
+  }
+}
+
+TEST_P(SolverRanks, AHeavyIslandIsSolvedExactlyAsByOneProcess) {
+  // (an island of very unequal masses is solved from every part's rows: the processes then each prepare
+  // every part, and still divide the iterations)
+  const int perLeaf = GetParam();
+  const Solved alone = solveLattice(1, perLeaf, 10, nullptr, true);
+  ASSERT_GT(alone.heavyIslands, 0u);
+  for (const int threads : {1, 2}) {
+    MpiProcessGroup exchange(MPI_COMM_WORLD);
+    const Solved shared = solveLattice(threads, perLeaf, 10, &exchange, true);
+    EXPECT_EQ(shared.heavyIslands, alone.heavyIslands);
+    EXPECT_TRUE(everywhere(same(shared, alone))) << exchange.size() << " processes, " << threads << " threads";
   }
 }
 

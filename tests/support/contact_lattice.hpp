@@ -14,13 +14,14 @@ constexpr int kNx = 6, kNy = 6, kNz = 8;
 
 /// A lattice of unit spheres (1 kg, spacing 1) with jittered centres and random velocities, every sphere
 /// touching its lattice neighbours and the bottom layer a fixed floor; some contacts overlap, some have
-/// small gaps.
+/// small gaps. With `heavyStack`, also a stack of two spheres beside it, apart from it: a 1 kg sphere on
+/// the floor under a 1000 kg one (an island the solver solves exactly: SolverSettings::heavyIslandRatio).
 struct Lattice {
   std::vector<SolverBody> bodies;
   std::vector<ContactPointInput> points;
 };
 
-inline Lattice makeLattice() {
+inline Lattice makeLattice(bool heavyStack = false) {
   Lattice l;
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> jitter(-0.02, 0.02), speed(-1.0, 1.0), depth(-0.01, 0.02);
@@ -60,6 +61,19 @@ inline Lattice makeLattice() {
         if (y + 1 < kNy) contact(i, index(x, y + 1, z), Vec3::UnitY());
         if (z + 1 < kNz) contact(i, index(x, y, z + 1), Vec3::UnitZ());
       }
+  if (heavyStack) {
+    const auto light = static_cast<std::uint32_t>(l.bodies.size()), heavy = light + 1;
+    for (const double mass : {1.0, 1000.0}) {
+      SolverBody b;
+      b.position = Vec3(-3.0, 2.5, 0.5 + static_cast<double>(l.bodies.size() - light));
+      b.v = Vec3(0.0, 0.0, -1.0);
+      b.invMass = 1.0 / mass;
+      b.invInertia = Mat3::Identity() / (0.4 * 0.25 * mass);
+      l.bodies.push_back(b);
+    }
+    contact(ContactPointInput::kFixed, light, Vec3::UnitZ());
+    contact(light, heavy, Vec3::UnitZ());
+  }
   return l;
 }
 
@@ -69,10 +83,12 @@ inline Lattice makeLattice() {
 struct Solved {
   std::vector<SolverBody> bodies;
   std::vector<Vec3> impulses;
+  std::size_t heavyIslands = 0;  // islands solved exactly, over the five solves
 };
 
-inline Solved solveLattice(int threads, int bodiesPerLeaf, int iterations, ProcessGroup* exchange = nullptr) {
-  Lattice l = makeLattice();
+inline Solved solveLattice(int threads, int bodiesPerLeaf, int iterations, ProcessGroup* exchange = nullptr,
+                           bool heavyStack = false) {
+  Lattice l = makeLattice(heavyStack);
   ContactSolver solver;
   SolverSettings s;
   s.bodiesPerLeaf = bodiesPerLeaf;
@@ -85,6 +101,7 @@ inline Solved solveLattice(int threads, int bodiesPerLeaf, int iterations, Proce
   for (int step = 0; step < 5; ++step) {
     solver.solve(l.bodies, l.points, 1.0 / 240.0, threads > 1 ? &pool : nullptr);
     r.impulses.insert(r.impulses.end(), solver.impulses().begin(), solver.impulses().end());
+    r.heavyIslands += solver.heavyIslandsSolved();
   }
   r.bodies = l.bodies;
   return r;

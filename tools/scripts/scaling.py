@@ -2,6 +2,7 @@
 """Time per step of pile-N against processes and threads (docs/distributed.md, "Scaling").
 
 usage: scaling.py VOLPAR [--sizes N,...] [--layouts PxT,...] [--settle S] [--steps K] [--repeats R] [--dir DIR]
+                  [--latency SECONDS] [--bandwidth BYTES_PER_SECOND]
 
 VOLPAR is a volpar built with VOLPAR_MPI=ON. For each size N (a pile of kx x ky x kz crates, the pile-1000
 scene of scenes/bench with more columns and layers: N = 8000 is 20 x 20 x 20; a size may also be given as
@@ -11,10 +12,17 @@ checkpoint with every layout P x T (P processes of T threads, under mpirun when 
 turns, R rounds. It prints per size and layout the median time per step and of each stage, the exchanges and
 the bytes process 0 received per step, and the most memory process 0 held (max_resident_bytes). Every run must end
 with the same energy as the others: the trajectory does not depend on the layout.
+
+With the layouts 1x1 and 2x1 among them, it then predicts the time per step for more processes on a cluster
+(docs/distributed.md, "A model for many processes"): for the design of today, in which every process holds
+the whole world, and for owners and ghosts, from the measured times, exchanges and bytes, the solver's
+rows per level of its tree, an interconnect of the given latency per exchange and step of its tree
+(default 2 microseconds) and bandwidth per process (default 3 GB/s).
 """
 
 import argparse
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -97,6 +105,8 @@ def main():
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--dir", default="build/scaling")
+    parser.add_argument("--latency", type=float, default=2e-6)
+    parser.add_argument("--bandwidth", type=float, default=3e9)
     args = parser.parse_args()
     os.makedirs(args.dir, exist_ok=True)
     layouts = [tuple(int(v) for v in layout.split("x")) for layout in args.layouts.split(",")]
@@ -131,6 +141,52 @@ def main():
             memory = statistics.median(r["max_resident_bytes"] for r in runs) / 2 ** 20
             print("| %d x %d | %.1f | %s | %.0f | %.0f | %.0f |" %
                   (layout[0], layout[1], per_step, " | ".join("%.1f" % t for t in stage), exchanges, received, memory))
+        if (1, 1) in results and (2, 1) in results:
+            model(n, results[(1, 1)], results[(2, 1)], args)
+
+
+# bytes a boundary body costs a step with owners and ghosts: its ghost's state (position, orientation,
+# velocities: 13 doubles) and its velocities after each solver level that touches it (10 velocity and 2
+# position iterations, 32 bytes each, and the double velocities of the last: 48)
+GHOST_BYTES = 13 * 8 + 12 * 32 + 48
+
+
+def model(bodies, one, two, args):
+    """Prints the predicted ms per step for more processes (docs/distributed.md, "A model for many processes")."""
+    def median(runs, f):
+        return statistics.median(f(r) for r in runs) / args.steps
+    t1, t2 = median(one, lambda r: r["step_seconds"]), median(two, lambda r: r["step_seconds"])
+    solver1 = median(one, lambda r: r["stage_seconds"]["solver"])
+    exchanges = median(two, lambda r: r["exchanges"])
+    received = median(two, lambda r: r["exchange_bytes"])
+    rows = one[0]["solver_rows_by_level"]
+    depth = max(l for l, r in enumerate(rows) if r > 0) if any(rows) else 0
+    # today: what two processes saved is half of what divides (this machine's exchanges counted against it)
+    divided = max(2.0 * (t1 - t2), 0.0)
+    replicated = t1 - divided
+    row_cost = solver1 / max(sum(rows), 1)
+    print()
+    print("Model, pile-%d (latency %.1f us, %.1f GB/s a process; measured: %.1f ms a step on 1 x 1, %.1f on "
+          "2 x 1, %.0f exchanges and %.0f kB a step; solver rows by level of its tree, root first: %s):" %
+          (bodies, args.latency * 1e6, args.bandwidth / 1e9, t1 * 1e3, t2 * 1e3, exchanges, received / 1e3,
+           ", ".join(str(r) for r in rows[:depth + 1])))
+    print("| processes | today: ms a step | speed-up | owners and ghosts: ms a step | speed-up | of which the "
+          "solver's upper levels |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    for p in (1, 2, 8, 64, 512):
+        steps = math.ceil(math.log2(p)) if p > 1 else 0
+        latency = exchanges * args.latency * steps if p > 1 else 0.0
+        # today every process receives everything the others computed: the other's half at 2 processes
+        today = replicated + divided / p + latency + (2.0 * received * (p - 1) / p / args.bandwidth if p > 1 else 0.0)
+        # owners and ghosts: everything but the solver divides; a node of the solver's tree is solved by one
+        # process, so a level of 2^l nodes takes at least one node's rows (the levels' nodes taken as equal)
+        solver = sum(r / min(p, 2 ** l) for l, r in enumerate(rows[:depth + 1])) * row_cost
+        upper = sum(r / 2 ** l for l, r in enumerate(rows[:depth + 1]) if 2 ** l < p) * row_cost
+        per_process = bodies / p
+        ghosts = min(per_process, 6.0 * per_process ** (2.0 / 3.0)) if p > 1 else 0.0
+        owned = (t1 - solver1) / p + solver + latency + ghosts * GHOST_BYTES / args.bandwidth
+        print("| %d | %.1f | %.1f | %.1f | %.1f | %.1f |" %
+              (p, today * 1e3, t1 / today, owned * 1e3, t1 / owned, upper * 1e3))
 
 
 if __name__ == "__main__":
