@@ -79,6 +79,7 @@ SHORTEN = {
     "narrow_phase_bench": ["--quick"],
     "impact_sweep.py": ["--speeds", "2,4", "--seeds", "1"],
     "plot_pile_bench.py": [],
+    "scaling.py": ["--sizes", "2x2x2", "--layouts", "1x1,2x1", "--settle", "10", "--steps", "5", "--repeats", "1"],
 }
 # Lines tried up to three times: a virtual X server sometimes fails to come up under load
 RETRY = [r"^xvfb-run\b"]

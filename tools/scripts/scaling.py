@@ -61,15 +61,25 @@ MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
 def grid(size):
     """(kx, ky, kz) of a size given as N (a cube) or KXxKYxKZ."""
     if "x" in size:
-        k = [int(v) for v in size.split("x")]
-        if len(k) != 3 or min(k) < 1:
+        parts = size.split("x")
+        if len(parts) != 3 or not all(p.isdigit() and int(p) >= 1 for p in parts):
             raise ValueError("a size KXxKYxKZ needs three positive counts: %r" % size)
-        return tuple(k)
+        return tuple(int(p) for p in parts)
+    if not size.isdigit():
+        raise ValueError("a size is a number of crates N (a cube) or KXxKYxKZ: %r" % size)
     n = int(size)
     k = round(n ** (1.0 / 3.0))
     if k < 1 or k ** 3 != n:
         raise ValueError("a size N must be a cube (or give KXxKYxKZ): %r" % size)
     return (k, k, k)
+
+
+def layout_of(text):
+    """(processes, threads) of a layout PxT."""
+    parts = text.split("x")
+    if len(parts) != 2 or not all(p.isdigit() and int(p) >= 1 for p in parts):
+        raise ValueError("a layout is PxT, P processes of T threads (each at least 1): %r" % text)
+    return int(parts[0]), int(parts[1])
 
 
 def write_scene(path, kx, ky, kz):
@@ -81,8 +91,11 @@ def write_scene(path, kx, ky, kz):
 
 
 def run(command, env=None):
-    done = subprocess.run(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                          env=dict(os.environ, **(env or {})))
+    try:
+        done = subprocess.run(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              env=dict(os.environ, **(env or {})))
+    except OSError as e:
+        sys.exit("scaling.py: cannot run %s: %s" % (command[0], e))
     if done.returncode != 0:
         sys.exit("failed (%d): %s\n%s" % (done.returncode, " ".join(command), done.stderr[-4000:]))
     return done.stdout
@@ -109,9 +122,14 @@ def main():
     parser.add_argument("--bandwidth", type=float, default=3e9)
     args = parser.parse_args()
     os.makedirs(args.dir, exist_ok=True)
-    layouts = [tuple(int(v) for v in layout.split("x")) for layout in args.layouts.split(",")]
-    for size in args.sizes.split(","):
-        kx, ky, kz = grid(size)
+    try:
+        layouts = [layout_of(layout) for layout in args.layouts.split(",")]
+        grids = [grid(size) for size in args.sizes.split(",")]
+    except ValueError as e:
+        sys.exit("scaling.py: %s" % e)
+    if min(args.settle, args.steps, args.repeats) < 1:
+        sys.exit("scaling.py: --settle, --steps and --repeats must be at least 1")
+    for kx, ky, kz in grids:
         n = kx * ky * kz
         scene = os.path.join(args.dir, "pile-%d.yaml" % n)
         write_scene(scene, kx, ky, kz)
