@@ -1,15 +1,16 @@
 #!/usr/bin/python3
 """Time per step of pile-N against processes and threads (docs/distributed.md, "Scaling").
 
-usage: scaling.py VOLPAR [--sizes N,...] [--layouts PxT,...] [--settle S] [--steps K] [--repeats R] [--dir DIR]
-                  [--latency SECONDS] [--bandwidth BYTES_PER_SECOND]
+usage: scaling.py VOLPAR [--sizes N,...] [--layouts PxT,...] [--settle S] [--warmup W] [--steps K] [--repeats R]
+                  [--dir DIR] [--latency SECONDS] [--bandwidth BYTES_PER_SECOND]
 
 VOLPAR is a volpar built with VOLPAR_MPI=ON. For each size N (a pile of kx x ky x kz crates, the pile-1000
 scene of scenes/bench with more columns and layers: N = 8000 is 20 x 20 x 20; a size may also be given as
 KXxKYxKZ), the script writes the scene into DIR, runs it for S steps on one process to a checkpoint (the pile
 collapsed onto itself, so the steps measured have their contacts), and then times K steps resumed from that
 checkpoint with every layout P x T (P processes of T threads, under mpirun when P > 1), the layouts taking
-turns, R rounds. It prints per size and layout the median time per step and of each stage, the exchanges and
+turns, R rounds. The first W steps after the checkpoint are left out (their buffers and caches are still
+cold): each measurement is a run of W + K steps less a run of W. It prints per size and layout the median time per step and of each stage, the exchanges and
 the bytes process 0 received per step, and the most memory process 0 held (max_resident_bytes). Every run must end
 with the same energy as the others: the trajectory does not depend on the layout.
 
@@ -101,12 +102,26 @@ def run(command, env=None):
     return done.stdout
 
 
-def timed(volpar, checkpoint, steps, processes, threads):
+def report(volpar, checkpoint, steps, processes, threads):
     """The report of one run of `steps` steps from the checkpoint."""
     inner = [volpar, "run", "--resume", checkpoint, "--steps", str(steps), "--no-output", "--threads", str(threads),
              "--json"]
     command = inner if processes == 1 else ["mpirun", "-np", str(processes), "--oversubscribe", "--bind-to", "none"] + inner
     return json.loads(run(command, MPI_ENV))
+
+
+def timed(volpar, checkpoint, warmup, steps, processes, threads):
+    """Steps warmup + 1 to warmup + steps from the checkpoint: a run of both less a run of the first (the times,
+    exchanges and bytes; the rest from the longer run)."""
+    whole = report(volpar, checkpoint, warmup + steps, processes, threads)
+    first = report(volpar, checkpoint, warmup, processes, threads) if warmup > 0 else None
+    if first is not None:
+        for key in ("step_seconds", "exchanges", "exchange_bytes"):
+            if key in whole:
+                whole[key] -= first[key]
+        for stage in whole["stage_seconds"]:
+            whole["stage_seconds"][stage] -= first["stage_seconds"][stage]
+    return whole
 
 
 def main():
@@ -115,6 +130,7 @@ def main():
     parser.add_argument("--sizes", default="8000")
     parser.add_argument("--layouts", default="1x1,1x2,2x1")
     parser.add_argument("--settle", type=int, default=480)
+    parser.add_argument("--warmup", type=int, default=5)
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--dir", default="build/scaling")
@@ -127,8 +143,8 @@ def main():
         grids = [grid(size) for size in args.sizes.split(",")]
     except ValueError as e:
         sys.exit("scaling.py: %s" % e)
-    if min(args.settle, args.steps, args.repeats) < 1:
-        sys.exit("scaling.py: --settle, --steps and --repeats must be at least 1")
+    if min(args.settle, args.steps, args.repeats) < 1 or args.warmup < 0:
+        sys.exit("scaling.py: --settle, --steps and --repeats must be at least 1, --warmup at least 0")
     for kx, ky, kz in grids:
         n = kx * ky * kz
         scene = os.path.join(args.dir, "pile-%d.yaml" % n)
@@ -140,12 +156,13 @@ def main():
         results = {layout: [] for layout in layouts}
         for _ in range(args.repeats):
             for layout in layouts:
-                results[layout].append(timed(args.volpar, settled, args.steps, *layout))
+                results[layout].append(timed(args.volpar, settled, args.warmup, args.steps, *layout))
         energies = {r["energy_end"] for runs in results.values() for r in runs}
         if len(energies) != 1:
             sys.exit("pile-%d: the layouts ended with different energies: %s" % (n, sorted(energies)))
-        print("pile-%d (%d bodies, %d particles), %d steps from step %d, median of %d:" %
-              (n, n, results[layouts[0]][0]["particles"], args.steps, args.settle, args.repeats))
+        print("pile-%d (%d bodies, %d particles), steps %d to %d, median of %d:" %
+              (n, n, results[layouts[0]][0]["particles"], args.settle + args.warmup + 1,
+               args.settle + args.warmup + args.steps, args.repeats))
         stages = ["broadphase", "particle_contacts", "narrow_phase", "solver", "integrate_positions"]
         print("| processes x threads | ms per step | " + " | ".join(stages) +
               " | exchanges per step | kB received per step | MiB in process 0 |")
