@@ -2,7 +2,6 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <cstring>
 #include <cmath>
 #include <numeric>
 
@@ -88,6 +87,18 @@ bool NarrowPhase::reusable(const NarrowPhaseInput& in, const ContactSet& set, co
   const ParticleStore& p = *in.particles;
   const double rsum = p.radius[contacts[0].a.index()] + p.radius[contacts[0].b.index()];
   return turned < settings_.reuseAngle && (position - c.relPosition).norm() < settings_.reuseShift * rsum;
+}
+
+std::uint32_t NarrowPhase::takenOver(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
+                                     CacheCursor& cursor) const {
+  // (groups mostly come in key order, like the cache: the cursor walks forward, a binary search when not)
+  const GroupKey key = keyOf(g);
+  const auto byKey = [](const CachedGroup& c, const GroupKey& k) { return c.key < k; };
+  if (cursor == cache_.groups.cbegin() || !(std::prev(cursor)->key < key))
+    cursor = std::lower_bound(cache_.groups.cbegin(), cache_.groups.cend(), key, byKey);
+  while (cursor != cache_.groups.cend() && cursor->key < key) ++cursor;
+  if (cursor == cache_.groups.cend() || !(cursor->key == key) || !reusable(in, set, g, *cursor)) return kNoMatch;
+  return static_cast<std::uint32_t>(cursor - cache_.groups.cbegin());
 }
 
 void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedGroup& c,
@@ -204,32 +215,21 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   }
   // the groups in chunks of contiguous ranges that the workers take as they go (a group whose patches
   // are taken over costs a small part of one whose patches are computed); outputs merged in chunk order
-  const auto byKey = [](const CachedGroup& c, const GroupKey& k) { return c.key < k; };
   const auto work = [&](int worker, std::size_t k) {
     Worker& w = workers_[static_cast<std::size_t>(worker)];
     w.o = &chunks_[k];
     const std::size_t begin = lo + (hi - lo) * k / chunks, end = lo + (hi - lo) * (k + 1) / chunks;
-    // each group's patches of the last run, if it may take them over (groups mostly come in key order,
-    // like the cache: a cursor walks forward, a binary search when not)
-    auto cursor = cache_.groups.begin();
-    if (begin < end) cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), keyOf(contacts.groups[begin]), byKey);
+    CacheCursor cursor = cache_.groups.cbegin();
     for (std::size_t gi = begin; gi < end; ++gi) {
       const ContactGroup& g = contacts.groups[gi];
       const bool cacheableGroup = settings_.reuse && cacheable(in, g);
-      if (ranks > 1) {  // (found already)
-        if (match_[gi] != kNoMatch) {
-          reuse(in, contacts, g, cache_.groups[match_[gi]], w, out);
-          continue;
-        }
-      } else if (cacheableGroup) {
-        const GroupKey key = keyOf(g);
-        if (cursor != cache_.groups.begin() && !(std::prev(cursor)->key < key))
-          cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), key, byKey);
-        while (cursor != cache_.groups.end() && cursor->key < key) ++cursor;
-        if (cursor != cache_.groups.end() && cursor->key == key && reusable(in, contacts, g, *cursor)) {
-          reuse(in, contacts, g, *cursor, w, out);
-          continue;
-        }
+      // (with processes, found already: divideGroups())
+      const std::uint32_t match = ranks > 1         ? match_[gi]
+                                  : cacheableGroup ? takenOver(in, contacts, g, cursor)
+                                                   : kNoMatch;
+      if (match != kNoMatch) {
+        reuse(in, contacts, g, cache_.groups[match], w, out);
+        continue;
       }
       const std::size_t patchBegin = w.o->patches.size();
       makePatches(in, contacts, g, w, out);
@@ -337,20 +337,12 @@ void NarrowPhase::divideGroups(const NarrowPhaseInput& in, const ContactSet& con
   // 0.65 against 6 microseconds a patch); the same estimate on every process, from the same cache
   constexpr std::uint64_t kTakenOver = 1, kComputed = 9;
   const std::size_t groups = contacts.groups.size();
-  match_.assign(groups, kNoMatch);
-  const auto byKey = [](const CachedGroup& c, const GroupKey& k) { return c.key < k; };
-  auto cursor = cache_.groups.begin();
+  match_.resize(groups);
+  CacheCursor cursor = cache_.groups.cbegin();
   std::uint64_t total = 0;
   for (std::size_t gi = 0; gi < groups; ++gi) {
     const ContactGroup& g = contacts.groups[gi];
-    if (settings_.reuse && cacheable(in, g)) {
-      const GroupKey key = keyOf(g);
-      if (cursor != cache_.groups.begin() && !(std::prev(cursor)->key < key))
-        cursor = std::lower_bound(cache_.groups.begin(), cache_.groups.end(), key, byKey);
-      while (cursor != cache_.groups.end() && cursor->key < key) ++cursor;
-      if (cursor != cache_.groups.end() && cursor->key == key && reusable(in, contacts, g, *cursor))
-        match_[gi] = static_cast<std::uint32_t>(cursor - cache_.groups.begin());
-    }
+    match_[gi] = settings_.reuse && cacheable(in, g) ? takenOver(in, contacts, g, cursor) : kNoMatch;
     total += match_[gi] != kNoMatch ? kTakenOver : kComputed;
   }
   // process r starts at the first group before which the cost reaches r / R of the total

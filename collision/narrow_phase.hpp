@@ -121,6 +121,12 @@ class NarrowPhase {
   static void relativePose(const NarrowPhaseInput& in, const ContactGroup& g, Quat& rotation, Vec3& position);
   [[nodiscard]] bool reusable(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
                               const CachedGroup& c) const;
+  /// The cache entry whose patches group g takes over (kNoMatch: none), found from `cursor` on (which it
+  /// leaves at g's key, for the next group).
+  using CacheCursor = std::vector<CachedGroup>::const_iterator;
+  static constexpr std::uint32_t kNoMatch = 0xffffffffu;
+  [[nodiscard]] std::uint32_t takenOver(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
+                                        CacheCursor& cursor) const;
   void reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedGroup& c,
              Worker& w, PatchSet& out) const;
   void remember(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, std::size_t patchBegin,
@@ -138,7 +144,6 @@ class NarrowPhase {
   std::vector<Output> gathered_;
   /// With processes: per group, the cache entry whose patches it takes over (kNoMatch: none); and each
   /// process's first group (and the end), the groups divided in runs of equal estimated cost.
-  static constexpr std::uint32_t kNoMatch = 0xffffffffu;
   std::vector<std::uint32_t> match_;
   std::vector<std::size_t> groupStart_;
   /// Finds each group's cache entry (match_) and divides the groups among the processes (groupStart_).

@@ -478,7 +478,6 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       rowSlots_.resize(np);
       keys_.resize(posBase_.back());
       impulses_.resize(np);
-      rowImpulse_.resize(np);
       nextCache_.resize(posBase_.back());
       batches_.resize(partCount());
       rankStart_.resize(partCount());
@@ -631,7 +630,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       const Vec3 impulse(static_cast<double>(ln * b.n.dx[l] + tx), static_cast<double>(ln * b.n.dy[l] + ty),
                          static_cast<double>(ln * b.n.dz[l] + tz));
       const Vec3 tangential(static_cast<double>(tx), static_cast<double>(ty), static_cast<double>(tz));
-      rowImpulse_[k] = impulse;
+      impulses_[order_[k]] = impulse;
       sum += static_cast<double>(ln);
       // (into the slots' double velocities: each leaf's slots lie apart from the others', so two threads
       // never write one cache line; the friction acts at its own arms)
@@ -746,10 +745,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
           std::uint8_t any = 0;
           for (std::size_t k = partsOf_.start[mine]; k < partsOf_.start[mine + 1]; ++k) any |= m[partsOf_.index[k]];
           movedBy_[mine] = any;
-          shareOffset_.resize(static_cast<std::size_t>(ranks));
-          shareCount_.assign(static_cast<std::size_t>(ranks), 1);
-          for (std::size_t r = 0; r < shareOffset_.size(); ++r) shareOffset_[r] = r;
-          processes_->share(std::as_writable_bytes(std::span<std::uint8_t>(movedBy_)), shareOffset_, shareCount_);
+          handOver(eachProcess_, movedBy_);
         }
         barrier_.wait();
         if (std::none_of(movedBy_.begin(), movedBy_.end(), [](std::uint8_t x) { return x != 0; })) break;
@@ -762,9 +758,9 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     if (ranks > 1) {
       if (worker == 0) {
         if (divideSetUp_) shareLanes(points);
-        planLanes();
+        planEndHandovers();
         handOver(interior_, dv_, dw_, pv_, pw_);
-        handOver(rows_, rowImpulse_);
+        handOver(points_, impulses_);
         handOver(lanes_, nextCache_);
         handOver(partsOf_, normalSum_, started_);
       }
@@ -791,7 +787,6 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   } else {
     iterate(0);
   }
-  for (std::size_t k = 0; k < np; ++k) impulses_[order_[k]] = rowImpulse_[k];
   warmStarted_ = 0;
   totalNormalImpulse_ = 0.0;
   for (std::size_t part = 0; part < partCount(); ++part) {
@@ -805,28 +800,25 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
 void ContactSolver::planHandovers() {
   const int ranks = processes_->size();
   const auto nRanks = static_cast<std::size_t>(ranks);
-  // (each level's nodes in runs, process by process, as forOwn() takes them)
-  const auto eachOwn = [&](int level, int r, const auto& f) {
+  // calls f(slot) for each body of each row of process r's nodes of a level (the nodes in runs, process by
+  // process, as forOwn() takes them; a part's rows are scratch_[parts_[part]] on, until spread() reorders
+  // them into order_)
+  const auto eachBody = [&](int level, int r, const auto& f) {
     const std::size_t n = std::size_t{1} << level;
-    for (std::size_t k = firstShare(r, ranks, n); k < firstShare(r + 1, ranks, n); ++k) f(levelStart(level) + k);
-  };
-  // which processes' nodes touch each slot (the rows of a part are scratch_[parts_[part]] on, until spread()
-  // reorders them into order_)
-  slotProcess_.assign(slots_, -1);
-  for (int l = 0; l <= depth_; ++l) {
-    for (int r = 0; r < ranks; ++r) {
-      eachOwn(l, r, [&](std::size_t part) {
-        for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) {
-          const auto [a, b] = ab_[scratch_[k]];
-          for (const std::uint32_t body : {a, b}) {
-            if (body == kFixed) continue;
-            std::int32_t& p = slotProcess_[slot_[body]];
-            p = p == -1 || p == r ? r : -2;
-          }
-        }
-      });
+    for (std::size_t k = firstShare(r, ranks, n); k < firstShare(r + 1, ranks, n); ++k) {
+      const std::size_t part = levelStart(level) + k;
+      for (std::size_t row = parts_[part]; row < parts_[part + 1]; ++row) {
+        const auto [a, b] = ab_[scratch_[row]];
+        if (a != kFixed) f(slot_[a]);
+        if (b != kFixed) f(slot_[b]);
+      }
     }
-  }
+  };
+  // which processes' nodes touch each slot: one (its number), several (-2) or none (-1)
+  slotProcess_.assign(slots_, -1);
+  for (int l = 0; l <= depth_; ++l)
+    for (int r = 0; r < ranks; ++r)
+      eachBody(l, r, [&](std::uint32_t s) { slotProcess_[s] = slotProcess_[s] == -1 || slotProcess_[s] == r ? r : -2; });
   boundary_.resize(static_cast<std::size_t>(depth_) + 1);
   listed_.assign(slots_, 0);
   for (int l = 0; l <= depth_; ++l) {
@@ -835,58 +827,51 @@ void ContactSolver::planHandovers() {
     h.start.resize(nRanks + 1);
     for (int r = 0; r < ranks; ++r) {
       h.start[static_cast<std::size_t>(r)] = h.index.size();
-      eachOwn(l, r, [&](std::size_t part) {
-        for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) {
-          const auto [a, b] = ab_[scratch_[k]];
-          for (const std::uint32_t body : {a, b}) {
-            if (body == kFixed) continue;
-            const std::uint32_t s = slot_[body];
-            if (slotProcess_[s] != -2 || listed_[s] == l + 1) continue;
-            listed_[s] = static_cast<std::uint8_t>(l + 1);
-            h.index.push_back(s);
-          }
-        }
+      eachBody(l, r, [&](std::uint32_t s) {
+        if (slotProcess_[s] != -2 || listed_[s] == l + 1) return;
+        listed_[s] = static_cast<std::uint8_t>(l + 1);
+        h.index.push_back(s);
       });
     }
     h.start[nRanks] = h.index.size();
   }
-  // the slots one process alone touches, by process; each process's rows and parts
+  // the slots one process alone touches, process by process (counted, then placed)
   interior_.start.assign(nRanks + 1, 0);
   for (std::size_t s = 0; s < slots_; ++s)
     if (slotProcess_[s] >= 0) ++interior_.start[static_cast<std::size_t>(slotProcess_[s]) + 1];
   for (std::size_t r = 0; r < nRanks; ++r) interior_.start[r + 1] += interior_.start[r];
   interior_.index.resize(interior_.start[nRanks]);
-  shareCount_.assign(interior_.start.begin(), interior_.start.end() - 1);  // (as the next entry of each)
+  interiorNext_.assign(interior_.start.begin(), interior_.start.end() - 1);
   for (std::size_t s = 0; s < slots_; ++s)
-    if (slotProcess_[s] >= 0) interior_.index[shareCount_[static_cast<std::size_t>(slotProcess_[s])]++] = static_cast<std::uint32_t>(s);
-  rows_.index.clear();
+    if (slotProcess_[s] >= 0) interior_.index[interiorNext_[static_cast<std::size_t>(slotProcess_[s])]++] = static_cast<std::uint32_t>(s);
+  // each process's parts, leaves first; and one entry per process
   partsOf_.index.clear();
-  rows_.start.resize(nRanks + 1);
   partsOf_.start.resize(nRanks + 1);
   for (int r = 0; r < ranks; ++r) {
-    rows_.start[static_cast<std::size_t>(r)] = rows_.index.size();
     partsOf_.start[static_cast<std::size_t>(r)] = partsOf_.index.size();
     for (int l = depth_; l >= 0; --l) {
-      eachOwn(l, r, [&](std::size_t part) {
-        partsOf_.index.push_back(static_cast<std::uint32_t>(part));
-        for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) rows_.index.push_back(static_cast<std::uint32_t>(k));
-      });
+      const std::size_t n = std::size_t{1} << l;
+      for (std::size_t k = firstShare(r, ranks, n); k < firstShare(r + 1, ranks, n); ++k)
+        partsOf_.index.push_back(static_cast<std::uint32_t>(levelStart(l) + k));
     }
   }
-  rows_.start[nRanks] = rows_.index.size();
   partsOf_.start[nRanks] = partsOf_.index.size();
+  eachProcess_.index.resize(nRanks);
+  eachProcess_.start.resize(nRanks + 1);
+  for (std::size_t r = 0; r <= nRanks; ++r) {
+    if (r < nRanks) eachProcess_.index[r] = static_cast<std::uint32_t>(r);
+    eachProcess_.start[r] = r;
+  }
   movedBy_.assign(nRanks, 0);
 }
 
 bool ContactSolver::heavyPairs(std::span<const SolverBody> bodies) const {
-  // (exactly the test solveHeavyIslands() makes of each row, from the same single-precision masses)
+  // (the test solveHeavyIslands() makes of each row, from the same single-precision masses)
   const double ratio = settings_.heavyIslandRatio;
   if (!(ratio > 0.0) || settings_.heavyIslandRows <= 0) return false;
   for (const auto& [a, b] : ab_) {
     if (a == kFixed || b == kFixed) continue;
-    const auto ia = static_cast<double>(static_cast<float>(bodies[a].invMass));
-    const auto ib = static_cast<double>(static_cast<float>(bodies[b].invMass));
-    if (ia > 0.0 && ib > 0.0 && (ia >= ratio * ib || ib >= ratio * ia)) return true;
+    if (heavyPair(static_cast<float>(bodies[a].invMass), static_cast<float>(bodies[b].invMass), ratio)) return true;
   }
   return false;
 }
@@ -913,20 +898,28 @@ void ContactSolver::shareLanes(std::span<const ContactPointInput> points) {
   }
 }
 
-void ContactSolver::planLanes() {
+void ContactSolver::planEndHandovers() {
+  // each process's parts' real lanes (their batches, once coloured) and their rows' input points (order_,
+  // once spread)
   const auto nRanks = static_cast<std::size_t>(processes_->size());
   lanes_.index.clear();
+  points_.index.clear();
   lanes_.start.resize(nRanks + 1);
+  points_.start.resize(nRanks + 1);
   for (std::size_t r = 0; r < nRanks; ++r) {
     lanes_.start[r] = lanes_.index.size();
+    points_.start[r] = points_.index.size();
     for (std::size_t k = partsOf_.start[r]; k < partsOf_.start[r + 1]; ++k) {
       const std::uint32_t part = partsOf_.index[k];
       const std::vector<std::uint32_t>& sorted = batches_[part].sorted;
       for (std::size_t j = 0; j < sorted.size(); ++j)
         if (sorted[j] != kNoRow) lanes_.index.push_back(static_cast<std::uint32_t>(posBase_[part] + j));
+      points_.index.insert(points_.index.end(), order_.begin() + static_cast<std::ptrdiff_t>(parts_[part]),
+                           order_.begin() + static_cast<std::ptrdiff_t>(parts_[part + 1]));
     }
   }
   lanes_.start[nRanks] = lanes_.index.size();
+  points_.start[nRanks] = points_.index.size();
 }
 
 template <class... T>

@@ -244,7 +244,6 @@ class ContactSolver {
   std::vector<std::size_t> started_;  // per part: rows warm started
   std::vector<double> normalSum_;     // per part: the normal impulses
   std::array<std::vector<std::uint8_t>, 2> moved_;  // per part: whether a position sweep moved (two sweeps' worth)
-  std::vector<Vec3> rowImpulse_;     // per row: its impulse (impulses_ by input point)
   ProcessGroup* processes_ = nullptr;
   std::vector<std::size_t> shareOffset_, shareCount_;  // (the shares' ranges in bytes, per process)
   /// With processes: entries of some arrays that each process hands the others, process r's
@@ -255,11 +254,17 @@ class ContactSolver {
   };
   /// Plans this solve's handovers (below) from the tree and the rows.
   void planHandovers();
-  /// The real lanes of each process's parts (lanes_), once they are coloured.
-  void planLanes();
+  /// The real lanes of each process's parts (lanes_) and their rows' input points (points_), once they are
+  /// coloured and spread.
+  void planEndHandovers();
   /// Whether a row joins two bodies whose masses differ by heavyIslandRatio or more (solveHeavyIslands()
   /// then has islands to solve, from every part's rows).
   [[nodiscard]] bool heavyPairs(std::span<const SolverBody> bodies) const;
+  /// Whether two bodies of these inverse masses (neither fixed) make a row solveHeavyIslands() solves exactly.
+  [[nodiscard]] static bool heavyPair(float invMassA, float invMassB, double ratio) {
+    const auto ia = static_cast<double>(invMassA), ib = static_cast<double>(invMassB);
+    return ia > 0.0 && ib > 0.0 && (ia >= ratio * ib || ib >= ratio * ia);
+  }
   /// With the set-up divided: every process's parts' lanes (the rows in colour order) and keys to every
   /// process, for the warm start of the next solve.
   void shareLanes(std::span<const ContactPointInput> points);
@@ -274,9 +279,11 @@ class ContactSolver {
   /// process, so the next node to read it reads its last value whichever process solves that node)
   std::vector<Handover> boundary_;
   Handover interior_;  // the slots of the bodies the nodes of one process alone touch, handed over at the end
-  Handover rows_, partsOf_, lanes_;  // each process's rows, parts and their real lanes, at the end
+  Handover partsOf_, lanes_, points_;  // each process's parts, their real lanes and their rows' points
+  Handover eachProcess_;               // one entry per process (its own number)
   std::vector<std::int32_t> slotProcess_;  // (per slot: the process whose nodes touch it; -1 none, -2 several)
   std::vector<std::uint8_t> listed_;       // (per slot: the level + 1 whose list holds it)
+  std::vector<std::size_t> interiorNext_;  // (per process: its next entry of interior_)
   std::vector<std::uint8_t> movedBy_;      // per process: whether a node of its moved in a position sweep
   std::vector<std::byte> handoverBytes_;
   std::vector<std::uint64_t> cacheKeys_;

@@ -79,13 +79,11 @@ void ContactSolver::solveHeavyIslands() {
           if (batches[j].row[l] != kNoRow) f(part, j, l, batches[j]);
     }
   };
-  const auto heavyPair = [&](const Batch& b, std::size_t l) {
-    const double ia = static_cast<double>(b.invMassA[static_cast<int>(l)]);
-    const double ib = static_cast<double>(b.invMassB[static_cast<int>(l)]);
-    return ia > 0.0 && ib > 0.0 && (ia >= ratio * ib || ib >= ratio * ia);
+  const auto heavyPairAt = [&](const Batch& b, std::size_t l) {
+    return heavyPair(b.invMassA[static_cast<int>(l)], b.invMassB[static_cast<int>(l)], ratio);
   };
   bool any = false;
-  forEachRow([&](std::size_t, std::size_t, std::size_t l, const Batch& b) { any = any || heavyPair(b, l); });
+  forEachRow([&](std::size_t, std::size_t, std::size_t l, const Batch& b) { any = any || heavyPairAt(b, l); });
   if (!any) return;
 
   // islands: the slots joined by rows between two bodies (the fixed sides join nothing)
@@ -103,7 +101,7 @@ void ContactSolver::solveHeavyIslands() {
   islandStart_.assign(slots_ + 1, 0);
   forEachRow([&](std::size_t, std::size_t, std::size_t l, const Batch& b) {
     const std::uint32_t r = rootOf(b, l);
-    if (heavyPair(b, l)) islandHeavy_[r] = 1;
+    if (heavyPairAt(b, l)) islandHeavy_[r] = 1;
     ++islandStart_[r + 1];
   });
   for (std::uint32_t s = 0; s < slots_; ++s) islandStart_[s + 1] += islandStart_[s];
