@@ -69,24 +69,30 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
   const std::string partial = options.output.empty() ? std::string() : partialPath(options.output);
   summary.output = partial;
   std::unique_ptr<H5mdWriter> writer;
-  // a failure after the file exists: the complete frames stay in the partial file (with its sidecar)
-  const auto keepPartial = [&](const Error& e) {
+  const bool together = options.fileProcesses && options.fileProcesses->size() > 1;
+  const bool lead = !together || options.fileProcesses->rank() == 0;  // renames the file
+  // a failure after the file exists: the complete frames stay in the partial file (with its sidecar). A failure
+  // to write may be this process's alone: processes writing together then leave the file unclosed (closing is
+  // collective), and the failure ends them all; one all of them meet at once (`everyProcess`) closes it.
+  const auto keepPartial = [&](const Error& e, bool everyProcess = false) {
     Error out = e;
     if (writer) {
       static_cast<void>(writer->writeSidecar(partial));
-      static_cast<void>(writer->close());
-      out.message += "; " + std::to_string(writer->frames()) + " complete frames are kept in " + partial;
+      if (everyProcess) static_cast<void>(writer->close());
+      else writer->abandon();
+      out.message += "; " + std::to_string(writer->committedFrames()) + " complete frames are kept in " + partial;
     }
     return out;
   };
   if (!options.output.empty()) {
     TrajectoryMeta withCheckpoints = meta;
     withCheckpoints.checkpoints = withCheckpoints.checkpoints || options.checkpointEvery > 0;
-    auto created = H5mdWriter::create(partial, world, withCheckpoints);
+    auto created = H5mdWriter::create(partial, world, withCheckpoints, options.fileProcesses);
     const auto removePartial = [&] {
+      if (writer) writer->abandon();
       writer.reset();
       std::error_code ignored;
-      std::filesystem::remove(partial, ignored);
+      if (lead) std::filesystem::remove(partial, ignored);
     };
     if (!created) {
       removePartial();
@@ -177,14 +183,15 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
   if (options.progress) options.progress(summary.steps, options.steps);
   if (writer) {
     summary.frames = writer->frames();
-    if (failed) return keepPartial(failure);
+    if (failed) return keepPartial(failure, true);
     if (auto ok = writer->close(); !ok) return keepPartial(ok.error());
+    summary.outputBytes = writer->bytesWritten();
     if (!summary.interrupted) {
       std::error_code ec;
-      std::filesystem::rename(partial, options.output, ec);
+      if (lead) std::filesystem::rename(partial, options.output, ec);
       if (ec)
         return keepPartial(Error{options.output, 0, 0, "cannot rename the finished trajectory to its name: " + ec.message()});
-      std::filesystem::remove(sidecarPath(partial), ec);
+      if (lead) std::filesystem::remove(sidecarPath(partial), ec);
       summary.output = options.output;
     }
     if (auto ok = writer->writeSidecar(summary.output); !ok) return ok.error();

@@ -50,6 +50,9 @@ struct RunOptions {
   /// Processes stepping one world together: called before every step with whether this one would stop;
   /// returns whether all stop (every process gets the same answer, so all stop at the same step). May be empty.
   std::function<bool(bool)> stopTogether;
+  /// Processes writing `output` together (H5mdWriter::create), each running this with the same world and
+  /// options; process 0 alone renames the file and writes its sidecar. May be null: this process alone.
+  const FileProcesses* fileProcesses = nullptr;
   /// When > 0: a checkpoint (the whole state, H5mdWriter::writeCheckpoint) after every step whose index is a
   /// multiple of it, after the last step and when interrupted; the file keeps the latest.
   std::int64_t checkpointEvery = 0;
@@ -89,6 +92,7 @@ struct RunSummary {
   FragmentHistogram fragments;       ///< at the end
   bool interrupted = false;
   std::string output;  ///< the trajectory written: the output's name, or its partial name when interrupted
+  std::uint64_t outputBytes = 0;  ///< bytes this process wrote into the trajectory's datasets
 };
 
 [[nodiscard]] Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunOptions& options);

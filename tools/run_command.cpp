@@ -23,6 +23,7 @@
 #include <fcntl.h>
 
 #include "volpar/distributed/mpi_session.hpp"
+#include "volpar/distributed/mpi_file_processes.hpp"
 #include "volpar/distributed/mpi_process_group.hpp"
 #endif
 
@@ -95,10 +96,13 @@ std::size_t maxResidentBytes() {
 int run(const RunArgs& args) {
 #if VOLPAR_HAS_MPI
   // under mpirun: every process builds and steps the whole world and they share the narrow phase and the
-  // contact solver's iterations; process 0 alone writes the trajectory and reports (docs/distributed.md). The others' output
-  // goes nowhere: they read the same inputs and so meet the same errors, which process 0 reports.
+  // contact solver's iterations, and they write the trajectory together; process 0 reports (docs/distributed.md).
+  // The others' output goes nowhere: they read the same inputs and so meet the same errors, which process 0
+  // reports; a failure to write the file, which may be one process's alone, each reports (through `ownErrors`).
   const MpiSession mpi;
+  int ownErrors = -1;
   if (mpi.rank() != 0) {
+    ownErrors = ::dup(STDERR_FILENO);
     const int null = ::open("/dev/null", O_WRONLY);
     if (null >= 0) ::dup2(null, STDOUT_FILENO), ::dup2(null, STDERR_FILENO), ::close(null);
   }
@@ -133,9 +137,11 @@ int run(const RunArgs& args) {
   // (by default the machine's hardware threads, divided among the processes on it)
   world.setThreads(args.threads > 0 ? args.threads : std::max(1, defaultThreads() / mpi.localSize()));
   std::optional<MpiProcessGroup> processes;
+  std::optional<MpiFileProcesses> fileProcesses;
   if (mpi.size() > 1) {
     processes.emplace(MPI_COMM_WORLD);
     world.setProcesses(&*processes);
+    fileProcesses.emplace(MPI_COMM_WORLD);
   }
 #else
   world.setThreads(args.threads > 0 ? args.threads : defaultThreads());
@@ -172,8 +178,10 @@ int run(const RunArgs& args) {
         return fail(*refused);
   }
 #if VOLPAR_HAS_MPI
-  if (mpi.rank() != 0) options.output.clear();  // (after the same checks as process 0's)
-  if (mpi.size() > 1) options.stopTogether = [&mpi](bool mine) { return mpi.any(mine); };
+  if (mpi.size() > 1) {
+    options.stopTogether = [&mpi](bool mine) { return mpi.any(mine); };
+    options.fileProcesses = &*fileProcesses;
+  }
 #endif
   if (isatty(STDERR_FILENO)) options.progress = progressBar;
   options.stop = &gStop;
@@ -194,12 +202,26 @@ int run(const RunArgs& args) {
   if (!summary) {
     const int status = fail(summary.error());
 #if VOLPAR_HAS_MPI
-    // (a failure of process 0 alone, writing, leaves the others waiting for it: end them all)
+    // (a failure of one process alone, writing, leaves the others waiting for it: it says why, and ends them all)
+    if (ownErrors >= 0 && !summary.error().file.empty()) {
+      const std::string line = "volpar: process " + std::to_string(mpi.rank()) + ": " + summary.error().toString() + "\n";
+      static_cast<void>(::write(ownErrors, line.data(), line.size()));
+    }
     if (mpi.size() > 1) mpi.abort(status);
 #endif
     return status;
   }
   const RunSummary& s = *summary;
+#if VOLPAR_HAS_MPI
+  // what each process wrote into the trajectory (process 0 reports them)
+  std::vector<std::size_t> outputBytes(static_cast<std::size_t>(mpi.size()), static_cast<std::size_t>(s.outputBytes));
+  if (mpi.size() > 1) {
+    const auto mine = static_cast<unsigned long long>(s.outputBytes);
+    std::vector<unsigned long long> all(outputBytes.size());
+    MPI_Gather(&mine, 1, MPI_UNSIGNED_LONG_LONG, all.data(), 1, MPI_UNSIGNED_LONG_LONG, 0, MPI_COMM_WORLD);
+    for (std::size_t r = 0; r < all.size(); ++r) outputBytes[r] = static_cast<std::size_t>(all[r]);
+  }
+#endif
   const double change = s.energyEnd.total() - s.energyStart.total();
   const StageTimes& t = s.stageTimes;
   if (args.json) {
@@ -219,6 +241,7 @@ int run(const RunArgs& args) {
         .field("processes", mpi.size())
         .field("exchanges", processes ? processes->calls() : std::size_t{0})
         .field("exchange_bytes", processes ? processes->bytesReceived() : std::size_t{0})
+        .field("output_bytes_by_process", std::span<const std::size_t>(outputBytes))
 #endif
         .field("simulated_seconds", world.time())
         .field("energy_start", s.energyStart.total())

@@ -74,6 +74,18 @@ class Hid {
   herr_t (*close_)(hid_t) = nullptr;
 };
 
+/// How this process writes the file: alone, or as one of several processes writing it together with parallel
+/// HDF5 (MPI-IO). With several, every write is a collective call of every process: each writes its share of
+/// the block's rows (writeBlock), or process 0 the whole of a block that cannot be divided.
+struct Io {
+  int rank = 0;
+  int size = 1;
+  Hid transfer;            ///< the dataset transfer property list: collective MPI-IO with several processes
+  std::uint64_t bytes = 0; ///< bytes this process has written into datasets
+  [[nodiscard]] hid_t transferList() const { return transfer.valid() ? transfer.get() : H5P_DEFAULT; }
+  [[nodiscard]] bool lead() const { return rank == 0; }
+};
+
 /// Thrown inside this file only, turned into an Error at the public boundary.
 struct H5Failure {
   std::string what;
@@ -86,6 +98,56 @@ void check(herr_t status, const std::string& what) {
 Hid checked(hid_t id, herr_t (*close)(hid_t), const std::string& what) {
   if (id < 0) throw H5Failure{what};
   return Hid(id, close);
+}
+
+/// Writes `data`, a block of `count` elements (C order), at `start` of the dataset `ds`. With several
+/// processes (a collective call of each, with the same block) each writes a share of the block: its rows, or
+/// where the block is one row deep, its entries along the next dimension, divided at the dataset's chunk
+/// boundaries (`chunk`; empty: contiguous) so that no two processes write one chunk; a block one element deep
+/// in both, or a scalar (empty `count`), process 0 writes whole.
+void writeBlock(Io& io, hid_t ds, hid_t memType, const std::vector<hsize_t>& start, const std::vector<hsize_t>& count,
+                const std::vector<hsize_t>& chunk, const void* data, const std::string& what) {
+  const bool scalar = count.empty();
+  Hid fileSpace = checked(H5Dget_space(ds), H5Sclose, "dataset space of " + what);
+  Hid memSpace = scalar ? checked(H5Screate(H5S_SCALAR), H5Sclose, "space")
+                        : checked(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr), H5Sclose, "space");
+  hsize_t elements = 1;
+  for (const hsize_t c : count) elements *= c;
+  if (elements == 0) return;  // (every process alike)
+  std::vector<hsize_t> myStart = start, myCount = count, memStart(count.size(), 0);
+  bool mine = true;
+  if (io.size > 1) {
+    std::size_t d = 0;
+    while (d < count.size() && d < 2 && count[d] <= 1) ++d;
+    if (d < count.size() && d < 2) {
+      // the block's extent along d in units that end at chunk boundaries (the first and last may be partial)
+      const hsize_t k = d < chunk.size() && chunk[d] > 0 ? chunk[d] : 1;
+      const hsize_t lo = start[d], hi = start[d] + count[d];
+      const hsize_t first = lo / k, units = (hi + k - 1) / k - first;
+      const auto at = [&](hsize_t u) { return std::clamp((first + u) * k, lo, hi); };
+      const auto r = static_cast<hsize_t>(io.rank), n = static_cast<hsize_t>(io.size);
+      const hsize_t from = at(units * r / n), to = at(units * (r + 1) / n);
+      mine = to > from;
+      myStart[d] = from;
+      myCount[d] = to - from;
+      memStart[d] = from - lo;
+    } else {
+      mine = io.lead();
+    }
+  }
+  if (!mine) {
+    check(H5Sselect_none(fileSpace.get()), "select");
+    check(H5Sselect_none(memSpace.get()), "select");
+  } else if (!scalar) {
+    check(H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, myStart.data(), nullptr, myCount.data(), nullptr), "select");
+    check(H5Sselect_hyperslab(memSpace.get(), H5S_SELECT_SET, memStart.data(), nullptr, myCount.data(), nullptr), "select");
+  }
+  check(H5Dwrite(ds, memType, memSpace.get(), fileSpace.get(), io.transferList(), data), "write " + what);
+  if (mine) {
+    hsize_t written = 1;
+    for (const hsize_t c : myCount) written *= c;
+    io.bytes += written * H5Tget_size(memType);
+  }
 }
 
 /// The group `name` (a path of groups; those missing on the way are made too), without modification times
@@ -114,6 +176,28 @@ Hid vlenString() {
   check(H5Tset_size(t.get(), H5T_VARIABLE), "string size");
   check(H5Tset_cset(t.get(), H5T_CSET_UTF8), "string charset");
   return t;
+}
+
+/// Fixed-length UTF-8 strings of `width` bytes, padded with zero bytes (datasets of strings are written so:
+/// parallel HDF5 cannot write variable-length data).
+Hid fixedString(std::size_t width) {
+  Hid t = checked(H5Tcopy(H5T_C_S1), H5Tclose, "string type");
+  check(H5Tset_size(t.get(), std::max<std::size_t>(width, 1)), "string size");
+  check(H5Tset_strpad(t.get(), H5T_STR_NULLPAD), "string pad");
+  check(H5Tset_cset(t.get(), H5T_CSET_UTF8), "string charset");
+  return t;
+}
+
+/// `values` side by side in `width` bytes each (a value longer than that is a failure, never cut short).
+std::string padded(const std::vector<std::string>& values, std::size_t width, const std::string& what) {
+  width = std::max<std::size_t>(width, 1);
+  std::string buf(values.size() * width, '\0');
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (values[i].size() > width)
+      throw H5Failure{what + ": '" + values[i] + "' is longer than the " + std::to_string(width) + " bytes kept for it"};
+    values[i].copy(&buf[i * width], values[i].size());
+  }
+  return buf;
 }
 
 void attrString(hid_t obj, const std::string& name, const std::string& value) {
@@ -205,7 +289,7 @@ Hid compressedPlist(const std::vector<hsize_t>& chunk) {
 
 /// Time-independent dataset with dims `dims`.
 template <class T>
-void dataset(hid_t parent, const std::string& name, const std::vector<hsize_t>& dims, const T* data,
+void dataset(Io& io, hid_t parent, const std::string& name, const std::vector<hsize_t>& dims, const T* data,
              const std::string& unit = "") {
   Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose, "space");
   hsize_t total = 1;
@@ -215,30 +299,33 @@ void dataset(hid_t parent, const std::string& name, const std::vector<hsize_t>& 
   Hid dcpl = total > 0 ? compressedPlist(chunk) : datasetPlist();
   Hid ds = checked(H5Dcreate2(parent, name.c_str(), fileType<T>(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
                    H5Dclose, "dataset " + name);
-  if (total > 0) check(H5Dwrite(ds.get(), nativeType<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "write " + name);
+  writeBlock(io, ds.get(), nativeType<T>(), std::vector<hsize_t>(dims.size(), 0), dims, chunk, data, name);
   if (!unit.empty()) attrString(ds.get(), "unit", unit);
 }
 
-void stringDataset(hid_t parent, const std::string& name, const std::vector<std::string>& values) {
-  Hid type = vlenString();
+/// A list of strings, each as wide as the longest.
+void stringDataset(Io& io, hid_t parent, const std::string& name, const std::vector<std::string>& values) {
+  std::size_t width = 1;
+  for (const std::string& v : values) width = std::max(width, v.size());
+  Hid type = fixedString(width);
   const hsize_t n = values.size();
   Hid space = checked(H5Screate_simple(1, &n, nullptr), H5Sclose, "space");
   Hid dcpl = datasetPlist();
   Hid ds = checked(H5Dcreate2(parent, name.c_str(), type.get(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
                    H5Dclose, "dataset " + name);
-  std::vector<const char*> ptrs;
-  for (const auto& v : values) ptrs.push_back(v.c_str());
-  if (n > 0) check(H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()), "write " + name);
+  const std::string buf = padded(values, width, name);
+  writeBlock(io, ds.get(), type.get(), {0}, {n}, {}, buf.data(), name);
 }
 
-void scalarString(hid_t parent, const std::string& name, const std::string& value) {
-  Hid type = vlenString();
+/// One string, in a string type of its own length.
+void scalarString(Io& io, hid_t parent, const std::string& name, const std::string& value) {
+  Hid type = fixedString(value.size());
   Hid space = checked(H5Screate(H5S_SCALAR), H5Sclose, "scalar space");
   Hid dcpl = datasetPlist();
   Hid ds = checked(H5Dcreate2(parent, name.c_str(), type.get(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
                    H5Dclose, "dataset " + name);
-  const char* p = value.c_str();
-  check(H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, &p), "write " + name);
+  const std::string buf = padded({value}, value.size(), name);
+  writeBlock(io, ds.get(), type.get(), {}, {}, {}, buf.data(), name);
 }
 
 /// An extendible dataset [T, tail...], grown one row per frame.
@@ -250,8 +337,8 @@ class Series {
   /// the only unlimited dimension, so that HDF5 indexes the chunks in an extensible array, which appending
   /// never rearranges (two unlimited dimensions take a B-tree, whose node splits rewrite nodes that hold
   /// frames already counted complete; a run killed in the middle of a split lost them).
-  Series(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, hsize_t growTo = 0)
-      : tail_(std::move(tail)), growTo_(growTo) {
+  Series(Io& io, hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, hsize_t growTo = 0)
+      : io_(&io), name_(name), tail_(std::move(tail)), growTo_(growTo) {
     const bool growable = growTo > 0;
     std::vector<hsize_t> dims{0}, maxdims{H5S_UNLIMITED}, chunk{1};
     hsize_t rowSize = 1;
@@ -281,6 +368,7 @@ class Series {
       chunk[0] = std::max<hsize_t>(1, kSmallRow / (chunk[1] * row));
     }
     for (hsize_t& c : chunk) c = std::max<hsize_t>(c, 1);
+    chunk_ = chunk;
     Hid space = checked(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), maxdims.data()), H5Sclose, "space");
     // A chunk that one append fills is written once, compressed. A chunk that fills over several appends is
     // rewritten each time: uncompressed, so it keeps its place in the file. (A compressed chunk that grows
@@ -312,15 +400,10 @@ class Series {
     std::vector<hsize_t> dims{rows_ + n};
     for (const hsize_t d : tail_) dims.push_back(d);
     check(H5Dset_extent(ds_.get(), dims.data()), "extend dataset");
-    Hid fileSpace = checked(H5Dget_space(ds_.get()), H5Sclose, "dataset space");
     std::vector<hsize_t> start(dims.size(), 0), count = dims;
     start[0] = rows_;
     count[0] = n;
-    check(H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr), "select");
-    Hid memSpace = checked(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr), H5Sclose, "space");
-    bool empty = false;
-    for (const hsize_t d : tail_) empty = empty || d == 0;
-    if (!empty) check(H5Dwrite(ds_.get(), memType, memSpace.get(), fileSpace.get(), H5P_DEFAULT, data), "write frame");
+    writeBlock(*io_, ds_.get(), memType, start, count, chunk_, data, name_);
     rows_ += n;
   }
   [[nodiscard]] hsize_t rows() const { return rows_; }
@@ -338,15 +421,12 @@ class Series {
   }
 
   /// Overwrites element `i` of a one-dimensional series.
-  void writeAt(hsize_t i, hid_t memType, const void* data) {
-    Hid fileSpace = checked(H5Dget_space(ds_.get()), H5Sclose, "dataset space");
-    const hsize_t one = 1;
-    check(H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, &i, nullptr, &one, nullptr), "select");
-    Hid memSpace = checked(H5Screate_simple(1, &one, nullptr), H5Sclose, "space");
-    check(H5Dwrite(ds_.get(), memType, memSpace.get(), fileSpace.get(), H5P_DEFAULT, data), "write element");
-  }
+  void writeAt(hsize_t i, hid_t memType, const void* data) { writeBlock(*io_, ds_.get(), memType, {i}, {1}, chunk_, data, name_); }
 
  private:
+  Io* io_ = nullptr;
+  std::string name_;
+  std::vector<hsize_t> chunk_;
   Hid ds_;
   std::vector<hsize_t> tail_;
   hsize_t growTo_ = 0;
@@ -359,10 +439,10 @@ class Element {
   Element() = default;
   /// With `clock` given, step and time are hard links to that element's (H5MD allows sharing them
   /// between elements sampled together), and append() leaves them to the owner.
-  Element(hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, const std::string& unit,
+  Element(Io& io, hid_t parent, const std::string& name, hid_t type, std::vector<hsize_t> tail, const std::string& unit,
           const Element* clock = nullptr, hsize_t growTo = 0) {
     group_ = group(parent, name);
-    value_ = Series(group_.get(), "value", type, std::move(tail), growTo);
+    value_ = Series(io, group_.get(), "value", type, std::move(tail), growTo);
     if (!unit.empty()) attrString(value_.id(), "unit", unit);
     if (clock) {
       check(H5Lcreate_hard(clock->group_.get(), "step", group_.get(), "step", H5P_DEFAULT, H5P_DEFAULT), "link step");
@@ -370,8 +450,8 @@ class Element {
       ownsClock_ = false;
       return;
     }
-    step_ = Series(group_.get(), "step", H5T_STD_I64LE, {});
-    time_ = Series(group_.get(), "time", H5T_IEEE_F64LE, {});
+    step_ = Series(io, group_.get(), "step", H5T_STD_I64LE, {});
+    time_ = Series(io, group_.get(), "time", H5T_IEEE_F64LE, {});
     attrString(time_.id(), "unit", "s");
   }
   void growTail(hsize_t n) { value_.growTail(n); }
@@ -410,17 +490,17 @@ struct ContactSeries {
   Hid group;
   Series offset, count, particleA, particleB, plane, point, normal, depth;
 
-  explicit ContactSeries(hid_t file = H5I_INVALID_HID) {
-    if (file < 0) return;
+  ContactSeries() = default;
+  ContactSeries(Io& io, hid_t file) {
     group = ::volpar::group(file, "contacts");
-    offset = Series(group.get(), "offset", H5T_STD_I64LE, {});
-    count = Series(group.get(), "count", H5T_STD_I64LE, {});
-    particleA = Series(group.get(), "particle_a", H5T_STD_I32LE, {});
-    particleB = Series(group.get(), "particle_b", H5T_STD_I32LE, {});
-    plane = Series(group.get(), "plane", H5T_STD_I32LE, {});
-    point = Series(group.get(), "point", H5T_IEEE_F64LE, {3});
-    normal = Series(group.get(), "normal", H5T_IEEE_F64LE, {3});
-    depth = Series(group.get(), "depth", H5T_IEEE_F64LE, {});
+    offset = Series(io, group.get(), "offset", H5T_STD_I64LE, {});
+    count = Series(io, group.get(), "count", H5T_STD_I64LE, {});
+    particleA = Series(io, group.get(), "particle_a", H5T_STD_I32LE, {});
+    particleB = Series(io, group.get(), "particle_b", H5T_STD_I32LE, {});
+    plane = Series(io, group.get(), "plane", H5T_STD_I32LE, {});
+    point = Series(io, group.get(), "point", H5T_IEEE_F64LE, {3});
+    normal = Series(io, group.get(), "normal", H5T_IEEE_F64LE, {3});
+    depth = Series(io, group.get(), "depth", H5T_IEEE_F64LE, {});
     attrString(point.id(), "unit", "m");
     attrString(depth.id(), "unit", "m");
   }
@@ -432,23 +512,23 @@ struct PatchSeries {
   Series offset, count, bodyA, bodyB, plane, planeCase, source, point, normal, depth, validated, lookAhead, lookAheadCase,
       contacts;
 
-  explicit PatchSeries(hid_t file = H5I_INVALID_HID) {
-    if (file < 0) return;
+  PatchSeries() = default;
+  PatchSeries(Io& io, hid_t file) {
     group = ::volpar::group(file, "patches");
-    offset = Series(group.get(), "offset", H5T_STD_I64LE, {});
-    count = Series(group.get(), "count", H5T_STD_I64LE, {});
-    bodyA = Series(group.get(), "body_a", H5T_STD_I32LE, {});
-    bodyB = Series(group.get(), "body_b", H5T_STD_I32LE, {});
-    plane = Series(group.get(), "plane", H5T_STD_I32LE, {});
-    planeCase = Series(group.get(), "case", H5T_STD_I32LE, {});
-    source = Series(group.get(), "source", H5T_STD_I32LE, {});
-    point = Series(group.get(), "point", H5T_IEEE_F64LE, {3});
-    normal = Series(group.get(), "normal", H5T_IEEE_F64LE, {3});
-    depth = Series(group.get(), "depth", H5T_IEEE_F64LE, {});
-    validated = Series(group.get(), "validated", H5T_STD_I8LE, {});
-    lookAhead = Series(group.get(), "look_ahead", H5T_STD_I8LE, {});
-    lookAheadCase = Series(group.get(), "look_ahead_case", H5T_STD_I32LE, {});
-    contacts = Series(group.get(), "contacts", H5T_STD_I32LE, {});
+    offset = Series(io, group.get(), "offset", H5T_STD_I64LE, {});
+    count = Series(io, group.get(), "count", H5T_STD_I64LE, {});
+    bodyA = Series(io, group.get(), "body_a", H5T_STD_I32LE, {});
+    bodyB = Series(io, group.get(), "body_b", H5T_STD_I32LE, {});
+    plane = Series(io, group.get(), "plane", H5T_STD_I32LE, {});
+    planeCase = Series(io, group.get(), "case", H5T_STD_I32LE, {});
+    source = Series(io, group.get(), "source", H5T_STD_I32LE, {});
+    point = Series(io, group.get(), "point", H5T_IEEE_F64LE, {3});
+    normal = Series(io, group.get(), "normal", H5T_IEEE_F64LE, {3});
+    depth = Series(io, group.get(), "depth", H5T_IEEE_F64LE, {});
+    validated = Series(io, group.get(), "validated", H5T_STD_I8LE, {});
+    lookAhead = Series(io, group.get(), "look_ahead", H5T_STD_I8LE, {});
+    lookAheadCase = Series(io, group.get(), "look_ahead_case", H5T_STD_I32LE, {});
+    contacts = Series(io, group.get(), "contacts", H5T_STD_I32LE, {});
     attrString(point.id(), "unit", "m");
     attrString(depth.id(), "unit", "m");
     std::vector<std::string> names;
@@ -464,20 +544,22 @@ struct PatchSeries {
 
 /// Per-body data that does not change over a body's life, one row per body, appended as bodies appear.
 struct BodyInfoSeries {
+  static constexpr std::size_t kKindWidth = 10;  ///< "deformable"
   Series name, kind, mass, moments, axes, com, created, retired, parent, gluedInto;
-  explicit BodyInfoSeries(hid_t g = H5I_INVALID_HID) {
-    if (g < 0) return;
-    Hid str = vlenString();
-    name = Series(g, "name", str.get(), {});
-    kind = Series(g, "kind", str.get(), {});
-    mass = Series(g, "mass", H5T_IEEE_F64LE, {});
-    moments = Series(g, "principal_moments", H5T_IEEE_F64LE, {3});
-    axes = Series(g, "principal_axes", H5T_IEEE_F64LE, {4});
-    com = Series(g, "com_in_shape", H5T_IEEE_F64LE, {3});
-    created = Series(g, "created", H5T_STD_I64LE, {});
-    retired = Series(g, "retired", H5T_STD_I64LE, {});
-    parent = Series(g, "parent", H5T_STD_I32LE, {});
-    gluedInto = Series(g, "glued_into", H5T_STD_I32LE, {});
+  std::size_t nameWidth = 1;
+  BodyInfoSeries() = default;
+  /// Names of up to `nameWidth` bytes.
+  BodyInfoSeries(Io& io, hid_t g, std::size_t width) : nameWidth(width) {
+    name = Series(io, g, "name", fixedString(nameWidth).get(), {});
+    kind = Series(io, g, "kind", fixedString(kKindWidth).get(), {});
+    mass = Series(io, g, "mass", H5T_IEEE_F64LE, {});
+    moments = Series(io, g, "principal_moments", H5T_IEEE_F64LE, {3});
+    axes = Series(io, g, "principal_axes", H5T_IEEE_F64LE, {4});
+    com = Series(io, g, "com_in_shape", H5T_IEEE_F64LE, {3});
+    created = Series(io, g, "created", H5T_STD_I64LE, {});
+    retired = Series(io, g, "retired", H5T_STD_I64LE, {});
+    parent = Series(io, g, "parent", H5T_STD_I32LE, {});
+    gluedInto = Series(io, g, "glued_into", H5T_STD_I32LE, {});
     attrString(mass.id(), "unit", "kg");
     attrString(moments.id(), "unit", "kg m2");
     attrString(com.id(), "unit", "m");
@@ -491,19 +573,19 @@ std::int32_t kindCode(ConnectorKind k) { return k == ConnectorKind::Rod ? 0 : k 
 struct BreakageSeries {
   Hid group;
   Series step, time, connector, particleA, particleB, body, kind, value, mode, energy;
-  explicit BreakageSeries(hid_t file = H5I_INVALID_HID) {
-    if (file < 0) return;
+  BreakageSeries() = default;
+  BreakageSeries(Io& io, hid_t file) {
     group = ::volpar::group(file, "breakage");
-    step = Series(group.get(), "step", H5T_STD_I64LE, {});
-    time = Series(group.get(), "time", H5T_IEEE_F64LE, {});
-    connector = Series(group.get(), "connector", H5T_STD_I32LE, {});
-    particleA = Series(group.get(), "particle_a", H5T_STD_I32LE, {});
-    particleB = Series(group.get(), "particle_b", H5T_STD_I32LE, {});
-    body = Series(group.get(), "body", H5T_STD_I32LE, {});
-    kind = Series(group.get(), "kind", H5T_STD_I32LE, {});
-    value = Series(group.get(), "value", H5T_IEEE_F64LE, {});
-    mode = Series(group.get(), "mode", H5T_STD_I32LE, {});
-    energy = Series(group.get(), "energy", H5T_IEEE_F64LE, {});
+    step = Series(io, group.get(), "step", H5T_STD_I64LE, {});
+    time = Series(io, group.get(), "time", H5T_IEEE_F64LE, {});
+    connector = Series(io, group.get(), "connector", H5T_STD_I32LE, {});
+    particleA = Series(io, group.get(), "particle_a", H5T_STD_I32LE, {});
+    particleB = Series(io, group.get(), "particle_b", H5T_STD_I32LE, {});
+    body = Series(io, group.get(), "body", H5T_STD_I32LE, {});
+    kind = Series(io, group.get(), "kind", H5T_STD_I32LE, {});
+    value = Series(io, group.get(), "value", H5T_IEEE_F64LE, {});
+    mode = Series(io, group.get(), "mode", H5T_STD_I32LE, {});
+    energy = Series(io, group.get(), "energy", H5T_IEEE_F64LE, {});
     attrString(time.id(), "unit", "s");
     attrString(energy.id(), "unit", "J");
     attrString(kind.id(), "meaning", "0: rod (value: force, N), 1: spring (value: strain), 2: bond (value: the stress that broke it, Pa)");
@@ -512,6 +594,7 @@ struct BreakageSeries {
 };
 
 struct H5mdWriter::Impl {
+  Io io;  // (first: every Series points at it)
   Hid file;
   Hid framesComplete;  // /parameters@frames_complete: the frames whose every record is on disk
   Element position, velocity, particleBody;
@@ -542,12 +625,10 @@ struct H5mdWriter::Impl {
     const std::size_t nb = b.size();
     for (std::size_t i = bodiesWritten; i < nb; ++i) {
       const BodyInfo& info = b.info[i];
-      const char* nm = info.name.c_str();
-      const std::string kindText = kindName(info.kind);
-      const char* kd = kindText.c_str();
-      Hid str = vlenString();
-      bodyInfo.name.append(str.get(), &nm);
-      bodyInfo.kind.append(str.get(), &kd);
+      const std::string nm = padded({info.name}, bodyInfo.nameWidth, "body name");
+      const std::string kd = padded({kindName(info.kind)}, BodyInfoSeries::kKindWidth, "body kind");
+      bodyInfo.name.append(fixedString(bodyInfo.nameWidth).get(), nm.data());
+      bodyInfo.kind.append(fixedString(BodyInfoSeries::kKindWidth).get(), kd.data());
       bodyInfo.mass.append(H5T_NATIVE_DOUBLE, &info.mass);
       bodyInfo.moments.append(H5T_NATIVE_DOUBLE, info.inertiaLocal.data());
       const Quat& q = info.principalInShape;
@@ -588,9 +669,15 @@ void makeCheckpointGroup(hid_t file);
 }  // namespace
 
 Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, const World& world,
-                                                       const TrajectoryMeta& meta) {
+                                                       const TrajectoryMeta& meta, const FileProcesses* processes) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are reported through Result, not printed by HDF5
   auto impl = std::make_unique<Impl>();
+  Io& io = impl->io;
+  const bool together = processes && processes->size() > 1;
+  if (together) {
+    io.rank = processes->rank();
+    io.size = processes->size();
+  }
   const std::string creating = path + ".creating";
   try {
     // The metadata cache holds a fixed 256 KiB (serialized; about 3 MiB in memory): by default it grows with
@@ -624,6 +711,15 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     // open a file so marked, which is exactly what a killed run leaves behind.
     // The file is made under a temporary name and takes its own only once its structure is on disk: a run
     // killed while creating it leaves no file of that name that HDF5 could not open.
+    // Several processes create the file together and write every dataset in collective calls, each its share.
+    if (together) {
+      if (!processes->useMpiIo(fapl.get()))
+        throw H5Failure{"this HDF5 cannot write one file from several processes (it was built without parallel support)"};
+      io.transfer = checked(H5Pcreate(H5P_DATASET_XFER), H5Pclose, "transfer property list");
+#ifdef H5_HAVE_PARALLEL
+      check(H5Pset_dxpl_mpio(io.transfer.get(), H5FD_MPIO_COLLECTIVE), "collective transfers");
+#endif
+    }
     impl->file = checked(H5Fcreate(creating.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose, "create file");
     const hid_t f = impl->file.get();
     check(H5Fset_libver_bounds(f, H5F_LIBVER_V110, H5F_LIBVER_V110), "file format version");
@@ -647,31 +743,40 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     {
       Hid all = group(f, "particles/all");
       writeBox(all.get());
-      dataset<double>(all.get(), "radius", {np}, p.radius.data(), "m");
-      dataset<double>(all.get(), "mass", {np}, p.mass.data(), "kg");
-      impl->position = Element(all.get(), "position", H5T_IEEE_F64LE, {np, 3}, "m");
-      impl->velocity = Element(all.get(), "velocity", H5T_IEEE_F64LE, {np, 3}, "m s-1", &impl->position);
-      impl->particleBody = Element(all.get(), "body", H5T_STD_I32LE, {np}, "", &impl->position);
+      dataset<double>(io, all.get(), "radius", {np}, p.radius.data(), "m");
+      dataset<double>(io, all.get(), "mass", {np}, p.mass.data(), "kg");
+      impl->position = Element(io, all.get(), "position", H5T_IEEE_F64LE, {np, 3}, "m");
+      impl->velocity = Element(io, all.get(), "velocity", H5T_IEEE_F64LE, {np, 3}, "m s-1", &impl->position);
+      impl->particleBody = Element(io, all.get(), "body", H5T_STD_I32LE, {np}, "", &impl->position);
     }
     // /particles/bodies: one row per body ever created (bodies appear when others break apart)
     {
       Hid bodies = group(f, "particles/bodies");
       writeBox(bodies.get());
-      impl->bodyInfo = BodyInfoSeries(bodies.get());
       // Breaking apart only ever splits a body into two or more, each with particles of its own, so a body of
       // n particles leaves at most 2n - 1 bodies in all: nb + 2 np bounds the bodies of any run.
       const hsize_t maxBodies = std::max<hsize_t>(nb + 2 * np, 1);
-      impl->bodyPosition = Element(bodies.get(), "position", H5T_IEEE_F64LE, {nb, 3}, "m", nullptr, maxBodies);
+      // a fragment is named after the first part of its body's name, a slash and its index (World's breakage):
+      // names are kept in as many bytes as the longest name or fragment's name could take, the same for a run
+      // resumed with fragments already made (the first parts are the scene's)
+      constexpr std::size_t kIndexDigits = 10;  // (a 32-bit index)
+      std::size_t nameWidth = 1;
+      for (std::size_t i = 0; i < nb; ++i) {
+        const std::string& name = b.info[i].name;
+        nameWidth = std::max({nameWidth, name.size(), name.substr(0, name.find('/')).size() + 1 + kIndexDigits});
+      }
+      impl->bodyInfo = BodyInfoSeries(io, bodies.get(), nameWidth);
+      impl->bodyPosition = Element(io, bodies.get(), "position", H5T_IEEE_F64LE, {nb, 3}, "m", nullptr, maxBodies);
       impl->bodyOrientation =
-          Element(bodies.get(), "orientation", H5T_IEEE_F64LE, {nb, 4}, "", &impl->bodyPosition, maxBodies);
+          Element(io, bodies.get(), "orientation", H5T_IEEE_F64LE, {nb, 4}, "", &impl->bodyPosition, maxBodies);
       impl->bodyVelocity =
-          Element(bodies.get(), "velocity", H5T_IEEE_F64LE, {nb, 3}, "m s-1", &impl->bodyPosition, maxBodies);
+          Element(io, bodies.get(), "velocity", H5T_IEEE_F64LE, {nb, 3}, "m s-1", &impl->bodyPosition, maxBodies);
       impl->bodyAngularVelocity =
-          Element(bodies.get(), "angular_velocity", H5T_IEEE_F64LE, {nb, 3}, "s-1", &impl->bodyPosition, maxBodies);
+          Element(io, bodies.get(), "angular_velocity", H5T_IEEE_F64LE, {nb, 3}, "s-1", &impl->bodyPosition, maxBodies);
       impl->syncBodies(b);
     }
     // /breakage: every connector that broke (the engine's own group)
-    impl->breakage = BreakageSeries(f);
+    impl->breakage = BreakageSeries(io, f);
     // /connectors: every connector's particles and kind, for drawing them (the engine's own group); with
     // /breakage they give the connectors standing in any frame
     {
@@ -686,63 +791,63 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
         broken[i] = static_cast<std::int8_t>(c.broken[i] ? 1 : 0);
       }
       Hid g = group(f, "connectors");
-      dataset(g.get(), "particle_a", {nc}, pa.data());
-      dataset(g.get(), "particle_b", {nc}, pb.data());
-      dataset(g.get(), "kind", {nc}, kind.data());
-      dataset(g.get(), "broken_before", {nc}, broken.data());
+      dataset(io, g.get(), "particle_a", {nc}, pa.data());
+      dataset(io, g.get(), "particle_b", {nc}, pb.data());
+      dataset(io, g.get(), "kind", {nc}, kind.data());
+      dataset(io, g.get(), "broken_before", {nc}, broken.data());
       Hid k = checked(H5Dopen2(g.get(), "kind", H5P_DEFAULT), H5Dclose, "dataset kind");
       attrString(k.get(), "meaning", "0: rod, 1: spring, 2: bond");
       // the connectors of the frames, for drawing: C rows (particle_a, particle_b; a broken connector from
       // particle_a to itself) written again only in frames after a break; lines_offset: the frame's first row
-      impl->connectorLines = Series(g.get(), "lines", H5T_STD_I32LE, {2});
-      impl->connectorLinesOffset = Series(g.get(), "lines_offset", H5T_STD_I64LE, {});
+      impl->connectorLines = Series(io, g.get(), "lines", H5T_STD_I32LE, {2});
+      impl->connectorLinesOffset = Series(io, g.get(), "lines_offset", H5T_STD_I64LE, {});
       impl->lineRows.resize(2 * nc);
     }
     // /observables
     {
       Hid obs = group(f, "observables");
-      impl->kinetic = Element(obs.get(), "kinetic_energy", H5T_IEEE_F64LE, {}, "J");
+      impl->kinetic = Element(io, obs.get(), "kinetic_energy", H5T_IEEE_F64LE, {}, "J");
       const Element* clock = &impl->kinetic;
-      impl->potential = Element(obs.get(), "potential_energy", H5T_IEEE_F64LE, {}, "J", clock);
-      impl->total = Element(obs.get(), "total_energy", H5T_IEEE_F64LE, {}, "J", clock);
-      impl->linearMomentum = Element(obs.get(), "linear_momentum", H5T_IEEE_F64LE, {3}, "kg m s-1", clock);
-      impl->angularMomentum = Element(obs.get(), "angular_momentum", H5T_IEEE_F64LE, {3}, "kg m2 s-1", clock);
-      impl->contactCount = Element(obs.get(), "contact_count", H5T_STD_I64LE, {}, "", clock);
-      impl->maxPenetration = Element(obs.get(), "max_penetration", H5T_IEEE_F64LE, {}, "m", clock);
-      impl->patchCount = Element(obs.get(), "patch_count", H5T_STD_I64LE, {}, "", clock);
-      impl->patchesByCase = Element(obs.get(), "patches_by_case", H5T_STD_I64LE, {kPlaneCaseCount}, "", clock);
+      impl->potential = Element(io, obs.get(), "potential_energy", H5T_IEEE_F64LE, {}, "J", clock);
+      impl->total = Element(io, obs.get(), "total_energy", H5T_IEEE_F64LE, {}, "J", clock);
+      impl->linearMomentum = Element(io, obs.get(), "linear_momentum", H5T_IEEE_F64LE, {3}, "kg m s-1", clock);
+      impl->angularMomentum = Element(io, obs.get(), "angular_momentum", H5T_IEEE_F64LE, {3}, "kg m2 s-1", clock);
+      impl->contactCount = Element(io, obs.get(), "contact_count", H5T_STD_I64LE, {}, "", clock);
+      impl->maxPenetration = Element(io, obs.get(), "max_penetration", H5T_IEEE_F64LE, {}, "m", clock);
+      impl->patchCount = Element(io, obs.get(), "patch_count", H5T_STD_I64LE, {}, "", clock);
+      impl->patchesByCase = Element(io, obs.get(), "patches_by_case", H5T_STD_I64LE, {kPlaneCaseCount}, "", clock);
       {
         std::vector<std::string> names;
         for (std::size_t k = 0; k < kPlaneCaseCount; ++k) names.push_back(planeCaseName(static_cast<PlaneCase>(k)));
         Hid g = checked(H5Gopen2(obs.get(), "patches_by_case", H5P_DEFAULT), H5Gclose, "group");
-        stringDataset(g.get(), "case_names", names);
+        stringDataset(io, g.get(), "case_names", names);
       }
-      impl->unvalidatedPatches = Element(obs.get(), "unvalidated_patches", H5T_STD_I64LE, {}, "", clock);
-      impl->lookAheads = Element(obs.get(), "look_aheads", H5T_STD_I64LE, {}, "", clock);
-      impl->candidates = Element(obs.get(), "candidates", H5T_STD_I64LE, {}, "", clock);
+      impl->unvalidatedPatches = Element(io, obs.get(), "unvalidated_patches", H5T_STD_I64LE, {}, "", clock);
+      impl->lookAheads = Element(io, obs.get(), "look_aheads", H5T_STD_I64LE, {}, "", clock);
+      impl->candidates = Element(io, obs.get(), "candidates", H5T_STD_I64LE, {}, "", clock);
       constexpr std::size_t bins = FragmentHistogram::kBins;
-      impl->fragmentCount = Element(obs.get(), "fragment_count", H5T_STD_I64LE, {}, "", clock);
-      impl->fragmentSizes = Element(obs.get(), "fragment_sizes", H5T_STD_I64LE, {bins}, "", clock);
-      impl->fragmentMass = Element(obs.get(), "fragment_mass", H5T_IEEE_F64LE, {bins}, "kg", clock);
-      impl->breakageEnergy = Element(obs.get(), "breakage_energy", H5T_IEEE_F64LE, {}, "J", clock);
+      impl->fragmentCount = Element(io, obs.get(), "fragment_count", H5T_STD_I64LE, {}, "", clock);
+      impl->fragmentSizes = Element(io, obs.get(), "fragment_sizes", H5T_STD_I64LE, {bins}, "", clock);
+      impl->fragmentMass = Element(io, obs.get(), "fragment_mass", H5T_IEEE_F64LE, {bins}, "kg", clock);
+      impl->breakageEnergy = Element(io, obs.get(), "breakage_energy", H5T_IEEE_F64LE, {}, "J", clock);
       {
         // bin k: fragments of 2^k to 2^(k+1) - 1 particles
         std::vector<std::int64_t> lower(bins);
         for (std::size_t k = 0; k < bins; ++k) lower[k] = std::int64_t{1} << k;
         for (const char* name : {"fragment_sizes", "fragment_mass"}) {
           Hid g = checked(H5Gopen2(obs.get(), name, H5P_DEFAULT), H5Gclose, "group");
-          dataset(g.get(), "bin_lower", {bins}, lower.data());
+          dataset(io, g.get(), "bin_lower", {bins}, lower.data());
         }
       }
     }
     // /contacts (the engine's own group): ragged per-frame arrays, on the particles' clock
-    impl->contacts = ContactSeries(f);
+    impl->contacts = ContactSeries(io, f);
     check(H5Lcreate_hard(f, "particles/all/position/step", impl->contacts.group.get(), "step", H5P_DEFAULT, H5P_DEFAULT),
           "link step");
     check(H5Lcreate_hard(f, "particles/all/position/time", impl->contacts.group.get(), "time", H5P_DEFAULT, H5P_DEFAULT),
           "link time");
     // /patches (the engine's own group): the frame's contact patches, ragged like /contacts
-    impl->patches = PatchSeries(f);
+    impl->patches = PatchSeries(io, f);
     check(H5Lcreate_hard(f, "particles/all/position/step", impl->patches.group.get(), "step", H5P_DEFAULT, H5P_DEFAULT),
           "link step");
     check(H5Lcreate_hard(f, "particles/all/position/time", impl->patches.group.get(), "time", H5P_DEFAULT, H5P_DEFAULT),
@@ -751,7 +856,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     {
       if (meta.checkpoints) makeCheckpointGroup(f);
       Hid par = group(f, "parameters");
-      scalarString(par.get(), "scene", meta.sceneText);
+      scalarString(io, par.get(), "scene", meta.sceneText);
       attrString(par.get(), "scene_name", meta.sceneName);
       attrString(par.get(), "scene_file", meta.sceneFile);
       attrString(par.get(), "engine", kName);
@@ -769,7 +874,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
       // planes: normal (3) and offset per row
       std::vector<double> planes;
       for (const Plane& pl : world.planes()) planes.insert(planes.end(), {pl.normal.x(), pl.normal.y(), pl.normal.z(), pl.offset});
-      dataset<double>(par.get(), "planes", {world.planes().size(), 4}, planes.data(), "");
+      dataset<double>(io, par.get(), "planes", {world.planes().size(), 4}, planes.data(), "");
       if (!meta.extraFiles.empty()) {
         Hid files = group(par.get(), "files");
         std::set<std::string> used;
@@ -780,22 +885,27 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
           used.insert(name);
           auto text = readInputFile(file, kMaxMeshFileBytes, "mesh file");
           if (!text) throw H5Failure{"cannot store " + text.error().toString()};
-          scalarString(files.get(), name, *text);
+          scalarString(io, files.get(), name, *text);
         }
       }
     }
     impl->bodyIndex.resize(p.size());
     check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
     std::error_code ec;
-    std::filesystem::rename(creating, path, ec);  // (HDF5 goes on writing through its open descriptor)
+    if (io.lead()) std::filesystem::rename(creating, path, ec);  // (HDF5 goes on writing through its open descriptor)
+    if (together && processes->any(static_cast<bool>(ec)) && !ec) throw H5Failure{"process 0 could not rename " + creating};
     if (ec) throw H5Failure{"rename " + creating + ": " + ec.message()};
   } catch (const H5Failure& e) {
+    // (with several processes, closing is collective and the others may be elsewhere: the failure ends them all,
+    // and the handles are left to the end of the process)
+    if (together) static_cast<void>(impl.release());
     impl.reset();
     std::error_code ignored;
-    std::filesystem::remove(creating, ignored);
+    if (io.lead()) std::filesystem::remove(creating, ignored);
     return Error{path, 0, 0, "cannot write trajectory (" + e.what + ")"};
   }
   auto writer = std::unique_ptr<H5mdWriter>(new H5mdWriter(std::move(impl), path, world.particles().size()));
+  writer->processes_ = together ? processes : nullptr;
   // what the sidecar draws besides the particles
   writer->connectors_ = world.connectors().size();
   for (const Plane& pl : world.planes()) writer->planes_.push_back({pl.normal.x(), pl.normal.y(), pl.normal.z(), pl.offset});
@@ -812,14 +922,16 @@ Status H5mdWriter::writeFrame(const World& world) {
   // A write that fails part way can leave HDF5's record of the file's end past its real end, and such a file
   // no longer opens: a frame is begun only with room on the disk for twice the most a commit has added so far
   // (the frames a commit writes out may sit in HDF5's caches until then), plus room to close the file.
-  hsize_t sizeBefore = 0;
-  if (H5Fget_filesize(m.file.get(), &sizeBefore) < 0) return Error{path_, 0, 0, "cannot read the trajectory's size"};
+  std::uint64_t sizeBefore = 0;
+  if (!fileSize(sizeBefore)) return Error{path_, 0, 0, "cannot read the trajectory's size"};
   constexpr std::uint64_t kCloseRoom = std::uint64_t{1} << 20;
   const std::uint64_t needed = 2 * largestCommit_ + kCloseRoom;
-  if (const std::uint64_t room = roomToGrow(path_, sizeBefore); room < needed)
-    return Error{path_, 0, 0, "not enough room: the disk or the file-size limit leaves " + std::to_string(room) +
-                                  " more bytes and a frame may need " + std::to_string(needed) + "; stopped before frame " +
-                                  std::to_string(times_.size())};
+  const std::uint64_t room = roomToGrow(path_, sizeBefore);
+  if (agree(room < needed))
+    return Error{path_, 0, 0, (room < needed ? "not enough room: the disk or the file-size limit leaves " + std::to_string(room) +
+                                                   " more bytes and a frame may need " + std::to_string(needed)
+                                             : std::string("not enough room for another process")) +
+                                  "; stopped before frame " + std::to_string(times_.size())};
   try {
     m.position.append(H5T_NATIVE_DOUBLE, p.position.data()->data(), step, time);
     m.velocity.append(H5T_NATIVE_DOUBLE, p.velocity.data()->data(), step, time);
@@ -905,8 +1017,9 @@ Status H5mdWriter::writeFrame(const World& world) {
   patchCounts_.push_back(patches);
   linesOffsets_.push_back(m.linesOffset);
   // (the first frame at once: a file that opens holds at least the state the run started from)
+  // (processes writing together commit together, when any one's interval has passed)
   if (commitSeconds_ <= 0.0 || committed_ == 0 ||
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - lastCommit_).count() >= commitSeconds_)
+      agree(std::chrono::duration<double>(std::chrono::steady_clock::now() - lastCommit_).count() >= commitSeconds_))
     return commit();
   return okStatus();
 }
@@ -928,8 +1041,8 @@ Status H5mdWriter::commit() {
                                   " (" + e.what + "); the file holds " + std::to_string(committed_) + " complete frames"};
   }
   committed_ = times_.size();
-  hsize_t size = 0;
-  if (H5Fget_filesize(m.file.get(), &size) >= 0) {
+  std::uint64_t size = 0;
+  if (fileSize(size)) {
     if (size > sizeAtCommit_) largestCommit_ = std::max<std::uint64_t>(largestCommit_, size - sizeAtCommit_);
     sizeAtCommit_ = size;
   }
@@ -1088,12 +1201,15 @@ Status H5mdWriter::writeCheckpoint(const World& world, std::int64_t endStep) {
   world.saveState(archive);
   const hid_t f = impl_->file.get();
   // as for frames: begun only with room for it twice over and for closing the file
-  hsize_t sizeBefore = 0;
-  if (H5Fget_filesize(f, &sizeBefore) < 0) return Error{path_, 0, 0, "cannot read the trajectory's size"};
+  std::uint64_t sizeBefore = 0;
+  if (!fileSize(sizeBefore)) return Error{path_, 0, 0, "cannot read the trajectory's size"};
   const std::uint64_t needed = 2 * archive.bytes() + (std::uint64_t{2} << 20);
-  if (const std::uint64_t room = roomToGrow(path_, sizeBefore); room < needed)
-    return Error{path_, 0, 0, "not enough room for the checkpoint of step " + std::to_string(step) + ": the disk or the file-size limit leaves " +
-                                  std::to_string(room) + " more bytes and it may need " + std::to_string(needed)};
+  const std::uint64_t room = roomToGrow(path_, sizeBefore);
+  if (agree(room < needed))
+    return Error{path_, 0, 0, "not enough room for the checkpoint of step " + std::to_string(step) +
+                                  (room < needed ? ": the disk or the file-size limit leaves " + std::to_string(room) +
+                                                       " more bytes and it may need " + std::to_string(needed)
+                                                 : std::string(" on another process"))};
   try {
     // the checkpoint goes into the slot that does not hold the current one; only that slot changes until it
     // is complete on disk, and then two attributes of /checkpoint, in place
@@ -1127,7 +1243,7 @@ Status H5mdWriter::writeCheckpoint(const World& world, std::int64_t endStep) {
       Hid dcpl = datasetPlist();
       Hid ds = checked(H5Dcreate2(g.get(), a.name.c_str(), fileType, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
                        "dataset " + a.name);
-      if (!a.bytes.empty()) check(H5Dwrite(ds.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.bytes.data()), "write " + a.name);
+      if (!a.bytes.empty()) writeBlock(impl_->io, ds.get(), memType, std::vector<hsize_t>(dims.size(), 0), dims, {}, a.bytes.data(), a.name);
     }
     attrScalar<std::int64_t>(g.get(), "step", step);
     attrScalar<double>(g.get(), "time", world.time());
@@ -1147,6 +1263,7 @@ Status H5mdWriter::writeCheckpoint(const World& world, std::int64_t endStep) {
 }
 
 Status H5mdWriter::writeSidecar(const std::string& h5Path) const {
+  if (processes_ && processes_->rank() != 0) return okStatus();  // (process 0's)
   // the complete frames only
   const auto n = static_cast<std::ptrdiff_t>(committed_);
   XdmfFrames f;
@@ -1163,6 +1280,32 @@ Status H5mdWriter::writeSidecar(const std::string& h5Path) const {
   return writeXdmf(f);
 }
 
+void H5mdWriter::abandon() {
+  if (!processes_) {
+    static_cast<void>(close());
+    return;
+  }
+  if (impl_) bytesWritten_ = impl_->io.bytes;
+  static_cast<void>(impl_.release());  // (closing is collective: the handles go with the process)
+}
+
+std::uint64_t H5mdWriter::bytesWritten() const { return impl_ ? impl_->io.bytes : bytesWritten_; }
+
+bool H5mdWriter::fileSize(std::uint64_t& size) const {
+  if (!processes_) {
+    hsize_t bytes = 0;
+    if (H5Fget_filesize(impl_->file.get(), &bytes) < 0) return false;
+    size = bytes;
+    return true;
+  }
+  // (HDF5's MPI-IO driver does not tell the size: the file system does)
+  std::error_code ec;
+  size = std::filesystem::file_size(path_, ec);
+  return !ec;
+}
+
+bool H5mdWriter::agree(bool mine) const { return processes_ ? processes_->any(mine) : mine; }
+
 Status H5mdWriter::close() {
   if (!impl_ || !impl_->file.valid()) return okStatus();
   if (auto ok = commit(); !ok) {
@@ -1170,6 +1313,7 @@ Status H5mdWriter::close() {
     return ok;
   }
   const herr_t flushed = H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
+  bytesWritten_ = impl_->io.bytes;
   const hid_t file = impl_->file.release();
   impl_.reset();  // closes every dataset and attribute
   const herr_t closed = H5Fclose(file);

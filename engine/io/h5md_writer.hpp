@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "volpar/engine/core/status.hpp"
+#include "volpar/engine/io/file_processes.hpp"
 #include "volpar/engine/io/xdmf_writer.hpp"
 #include "volpar/engine/world.hpp"
 
@@ -30,9 +31,13 @@ struct TrajectoryMeta {
 
 class H5mdWriter {
  public:
-  /// Creates (truncates) `path` and writes the time-independent data of `world`.
+  /// Creates (truncates) `path` and writes the time-independent data of `world`. With `processes` (more than
+  /// one), every one of them holds the same world and makes every call of this class alike: they create the file
+  /// together with parallel HDF5 and each writes its share of every dataset's rows (process 0 the blocks too
+  /// small to divide, and the XDMF sidecar alone). `processes` must outlive the writer.
   [[nodiscard]] static Result<std::unique_ptr<H5mdWriter>> create(const std::string& path, const World& world,
-                                                                  const TrajectoryMeta& meta);
+                                                                  const TrajectoryMeta& meta,
+                                                                  const FileProcesses* processes = nullptr);
   ~H5mdWriter();
   H5mdWriter(const H5mdWriter&) = delete;
   H5mdWriter& operator=(const H5mdWriter&) = delete;
@@ -63,6 +68,12 @@ class H5mdWriter {
   [[nodiscard]] Status writeSidecar(const std::string& h5Path) const;
   /// Flushes and closes the file (also done by the destructor).
   [[nodiscard]] Status close();
+  /// After a failure: with several processes, leaves the file as it is without closing it (closing is a
+  /// collective call, which the other processes may never make; the frames committed are on disk), for a
+  /// process about to end; alone, the same as close().
+  void abandon();
+  /// Bytes this process has written into the file's datasets.
+  [[nodiscard]] std::uint64_t bytesWritten() const;
 
   /// Frames written; committedFrames(): those counted complete in the file.
   [[nodiscard]] std::size_t frames() const { return times_.size(); }
@@ -75,7 +86,14 @@ class H5mdWriter {
   void writeContacts(const ContactSet& contacts);  // throws the file's internal failure type
   void writePatches(const PatchSet& patches);      // likewise
 
+  /// Whether any of the processes writing together says yes (alone: `mine`).
+  [[nodiscard]] bool agree(bool mine) const;
+  /// The file's size in bytes; false where it cannot be told.
+  [[nodiscard]] bool fileSize(std::uint64_t& size) const;
+
   std::unique_ptr<Impl> impl_;
+  const FileProcesses* processes_ = nullptr;  ///< with more than one process writing together
+  std::uint64_t bytesWritten_ = 0;
   std::string path_;
   std::size_t particles_ = 0;
   std::uint64_t largestCommit_ = 0;  ///< the most bytes a commit has added to the file

@@ -1,12 +1,19 @@
 #!/usr/bin/env python3
 """`volpar run` under mpirun gives the trajectory of one process, bit for bit.
 
-usage: run_processes.py VOLPAR SCENE STEPS WORKDIR [--processes 2,3]
+usage: run_processes.py VOLPAR SCENE STEPS WORKDIR [--processes 2,3] [--resume K]
 
 Runs SCENE for STEPS steps without MPI (one thread), then under mpirun with each number of processes (one
 thread each, oversubscribed), and compares each trajectory with the first with h5diff (every dataset and
 attribute). Each MPI run must report its processes and bytes received through the exchanges (the
-processes did divide the work), and write no file but process 0's.
+processes did divide the work), and the bytes each process wrote into the one trajectory they write together
+(parallel HDF5): every process some, and all of them together exactly what one process writes alone (each
+row written once). The MPI runs write the same files as one process's run, no more.
+
+With --resume K, every run also writes a checkpoint every STEPS/2 steps (written together, like the frames),
+and each run is then resumed from its file for K more steps on the next number of processes (one process's
+run on the first number, the last number's on one process): every resumed trajectory must be the same as the
+one process's resumed on one process.
 
 With --kill-after FRAMES instead: process 0 kills itself (SIGKILL) after writing FRAMES frames of an MPI run
 of 2 processes; the run must end with a non-zero status within the timeout, every process gone, and the
@@ -42,9 +49,10 @@ def main():
     p.add_argument("--processes", default="2,3")
     p.add_argument("--kill-after", type=int, default=0)
     p.add_argument("--kill-other", action="store_true")
+    p.add_argument("--resume", type=int, default=0)
     a = p.parse_args()
     os.makedirs(a.workdir, exist_ok=True)
-    for old in glob.glob(os.path.join(a.workdir, "*.h5*")):
+    for old in glob.glob(os.path.join(a.workdir, "*.h5")) + glob.glob(os.path.join(a.workdir, "*.xdmf2")):
         os.remove(old)
     name = os.path.splitext(os.path.basename(a.scene))[0]
     failures = []
@@ -118,13 +126,18 @@ def main():
             failures.append("the partial trajectory %s does not read: %s" % (partial, e))
     else:
         serial = os.path.join(a.workdir, name + "-1.h5")
-        r = subprocess.run([a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", serial],
+        counts = [int(x) for x in a.processes.split(",")]
+        extra = ["--checkpoint-every", str(max(1, int(a.steps) // 2))] if a.resume else []
+        r = subprocess.run([a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", serial, "--json"] + extra,
                            capture_output=True, text=True)
         if r.returncode != 0:
             sys.exit("the run of one process failed:\n" + r.stdout + r.stderr)
-        for n in [int(x) for x in a.processes.split(",")]:
+        alone = json.loads(r.stdout)["output_bytes_by_process"]
+        if len(alone) != 1 or alone[0] <= 0:
+            sys.exit("one process reports %s bytes written" % alone)
+        for n in counts:
             out = os.path.join(a.workdir, "%s-%d.h5" % (name, n))
-            r = mpirun(n, [a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", out, "--json"])
+            r = mpirun(n, [a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", out, "--json"] + extra)
             if r.returncode != 0:
                 failures.append("%d processes: status %d\n%s%s" % (n, r.returncode, r.stdout, r.stderr))
                 continue
@@ -132,6 +145,10 @@ def main():
             if report.get("processes") != n or not report.get("exchange_bytes", 0) > 0:
                 failures.append("%d processes: the report says %s processes and %s bytes exchanged" %
                                 (n, report.get("processes"), report.get("exchange_bytes")))
+            written = report.get("output_bytes_by_process", [])
+            if len(written) != n or min(written) <= 0 or sum(written) != alone[0]:
+                failures.append("%d processes wrote %s bytes of the trajectory; expected every one some, %d in all "
+                                "as one process alone" % (n, written, alone[0]))
             # (the files of one process's run, renamed: nothing more from the other processes)
             files = sorted(os.path.basename(f) for f in glob.glob(os.path.join(a.workdir, "%s-%d*" % (name, n))))
             expected = sorted(os.path.basename(f).replace("%s-1" % name, "%s-%d" % (name, n))
@@ -143,7 +160,31 @@ def main():
                 failures.append("%d processes: h5diff finds differences from one process:\n%s" % (n, d.stdout[-3000:]))
             else:
                 print("%d processes: the same trajectory as one process (h5diff), %d bytes of exchanges "
-                      "received by process 0" % (n, report["exchange_bytes"]))
+                      "received by process 0, %s bytes of it written by each" % (n, report["exchange_bytes"], written))
+        if a.resume and not failures:
+            def resumed(n, on):
+                return os.path.join(a.workdir, "%s-%d-resumed-on-%d.h5" % (name, n, on))
+
+            def resume(n, on):
+                source = serial if n == 1 else os.path.join(a.workdir, "%s-%d.h5" % (name, n))
+                cmd = [a.volpar, "run", "--resume", source, "-o", resumed(n, on), "--steps", str(a.resume), "--threads", "1"]
+                return mpirun(on, cmd) if on > 1 else subprocess.run(cmd, capture_output=True, text=True)
+
+            r = resume(1, 1)
+            if r.returncode != 0:
+                sys.exit("resuming one process's run failed:\n" + r.stdout + r.stderr)
+            # each run resumed on the next number of processes: 1 -> first, ..., last -> 1
+            chain = [1] + counts + [1]
+            for n, on in zip(chain[:-1], chain[1:]):
+                r = resume(n, on)
+                if r.returncode != 0:
+                    failures.append("resuming the run of %d processes on %d: status %d\n%s%s" % (n, on, r.returncode, r.stdout, r.stderr))
+                    continue
+                d = subprocess.run(["h5diff", "-c", resumed(1, 1), resumed(n, on)], capture_output=True, text=True)
+                if d.returncode != 0:
+                    failures.append("the run of %d processes resumed on %d differs from one process's:\n%s" % (n, on, d.stdout[-3000:]))
+                else:
+                    print("the run of %d processes resumed on %d: the same trajectory as one process's (h5diff)" % (n, on))
     if failures:
         sys.exit("\n".join(failures))
 
