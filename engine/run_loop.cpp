@@ -73,13 +73,14 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
   const bool lead = !together || options.fileProcesses->rank() == 0;  // renames the file
   // a failure after the file exists: the complete frames stay in the partial file (with its sidecar). A failure
   // to write may be this process's alone: processes writing together then leave the file unclosed (closing is
-  // collective), and the failure ends them all; one all of them meet at once (`everyProcess`) closes it.
+  // collective; H5mdWriter::closeAfterFailure), and the failure ends them all; one all of them meet at once
+  // (`everyProcess`, or a lack of room, which they agree on) closes it.
   const auto keepPartial = [&](const Error& e, bool everyProcess = false) {
     Error out = e;
     if (writer) {
       static_cast<void>(writer->writeSidecar(partial));
       if (everyProcess) static_cast<void>(writer->close());
-      else writer->abandon();
+      else writer->closeAfterFailure();
       out.message += "; " + std::to_string(writer->committedFrames()) + " complete frames are kept in " + partial;
     }
     return out;
@@ -89,7 +90,7 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
     withCheckpoints.checkpoints = withCheckpoints.checkpoints || options.checkpointEvery > 0;
     auto created = H5mdWriter::create(partial, world, withCheckpoints, options.fileProcesses);
     const auto removePartial = [&] {
-      if (writer) writer->abandon();
+      if (writer) writer->closeAfterFailure();
       writer.reset();
       std::error_code ignored;
       if (lead) std::filesystem::remove(partial, ignored);

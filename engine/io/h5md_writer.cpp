@@ -927,7 +927,7 @@ Status H5mdWriter::writeFrame(const World& world) {
   constexpr std::uint64_t kCloseRoom = std::uint64_t{1} << 20;
   const std::uint64_t needed = 2 * largestCommit_ + kCloseRoom;
   const std::uint64_t room = roomToGrow(path_, sizeBefore);
-  if (agree(room < needed))
+  if ((failedTogether_ = agree(room < needed)))
     return Error{path_, 0, 0, (room < needed ? "not enough room: the disk or the file-size limit leaves " + std::to_string(room) +
                                                    " more bytes and a frame may need " + std::to_string(needed)
                                              : std::string("not enough room for another process")) +
@@ -1205,7 +1205,7 @@ Status H5mdWriter::writeCheckpoint(const World& world, std::int64_t endStep) {
   if (!fileSize(sizeBefore)) return Error{path_, 0, 0, "cannot read the trajectory's size"};
   const std::uint64_t needed = 2 * archive.bytes() + (std::uint64_t{2} << 20);
   const std::uint64_t room = roomToGrow(path_, sizeBefore);
-  if (agree(room < needed))
+  if ((failedTogether_ = agree(room < needed)))
     return Error{path_, 0, 0, "not enough room for the checkpoint of step " + std::to_string(step) +
                                   (room < needed ? ": the disk or the file-size limit leaves " + std::to_string(room) +
                                                        " more bytes and it may need " + std::to_string(needed)
@@ -1280,8 +1280,8 @@ Status H5mdWriter::writeSidecar(const std::string& h5Path) const {
   return writeXdmf(f);
 }
 
-void H5mdWriter::abandon() {
-  if (!processes_) {
+void H5mdWriter::closeAfterFailure() {
+  if (!processes_ || failedTogether_) {
     static_cast<void>(close());
     return;
   }

@@ -68,10 +68,11 @@ class H5mdWriter {
   [[nodiscard]] Status writeSidecar(const std::string& h5Path) const;
   /// Flushes and closes the file (also done by the destructor).
   [[nodiscard]] Status close();
-  /// After a failure: with several processes, leaves the file as it is without closing it (closing is a
-  /// collective call, which the other processes may never make; the frames committed are on disk), for a
-  /// process about to end; alone, the same as close().
-  void abandon();
+  /// After a failure, for a process about to end: closes the file (committing every frame written) where
+  /// this process writes alone or where every process met the failure together (a lack of room, agreed
+  /// before a frame or a checkpoint); otherwise leaves it unclosed, since closing is a collective call
+  /// that the other processes may never make: the frames committed before are on disk.
+  void closeAfterFailure();
   /// Bytes this process has written into the file's datasets.
   [[nodiscard]] std::uint64_t bytesWritten() const;
 
@@ -94,6 +95,7 @@ class H5mdWriter {
   std::unique_ptr<Impl> impl_;
   const FileProcesses* processes_ = nullptr;  ///< with more than one process writing together
   std::uint64_t bytesWritten_ = 0;
+  bool failedTogether_ = false;  ///< the last failure was every process's (agreed)
   std::string path_;
   std::size_t particles_ = 0;
   std::uint64_t largestCommit_ = 0;  ///< the most bytes a commit has added to the file

@@ -19,6 +19,11 @@ With --kill-after FRAMES instead: process 0 kills itself (SIGKILL) after writing
 of 2 processes; the run must end with a non-zero status within the timeout, every process gone, and the
 partial trajectory must hold FRAMES readable frames (h5py).
 
+With --room-on-1 KB instead: process 1 of 2 runs under a file-size limit of KB kibibytes (ulimit -f), so that it
+alone finds too little room for the next frame; every process must stop before the same frame, process 1 say
+so, the run end with status 1, and the partial trajectory, closed by the processes together, hold every frame
+written (frames_complete, as the message says) readably.
+
 With --kill-other instead: once process 0 has written its first frames, process 1 is killed (SIGKILL) from
 outside; mpirun must end process 0 too, with a non-zero status, and the frames process 0 committed must read.
 """
@@ -26,6 +31,7 @@ import argparse
 import glob
 import json
 import os
+import re
 import subprocess
 import signal
 import sys
@@ -50,6 +56,7 @@ def main():
     p.add_argument("--kill-after", type=int, default=0)
     p.add_argument("--kill-other", action="store_true")
     p.add_argument("--resume", type=int, default=0)
+    p.add_argument("--room-on-1", type=int, default=0)
     a = p.parse_args()
     os.makedirs(a.workdir, exist_ok=True)
     for old in glob.glob(os.path.join(a.workdir, "*.h5")) + glob.glob(os.path.join(a.workdir, "*.xdmf2")):
@@ -106,6 +113,26 @@ def main():
             print("process 1 killed: status %d, %s holds %d readable frames" % (run.returncode, partial, frames))
         except (OSError, KeyError) as e:
             failures.append("the partial trajectory %s does not read: %s" % (partial, e))
+    elif a.room_on_1:
+        out = os.path.join(a.workdir, name + "-no-room.h5")
+        partial = out.replace(".h5", ".partial.h5")
+        limit = 'if [ "$OMPI_COMM_WORLD_RANK" = 1 ]; then ulimit -f %d; fi; exec "$0" "$@"' % a.room_on_1
+        r = mpirun(2, ["bash", "-c", limit, a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", out])
+        said = re.search(r"volpar: process 1: .*not enough room.*; (\d+) complete frames are kept", r.stderr)
+        if r.returncode != 1 or not said:
+            failures.append("process 1 without room: status %d, expected 1 and its message:\n%s" % (r.returncode, r.stderr[-2000:]))
+        else:
+            try:
+                with h5py.File(partial, "r") as h:
+                    frames = h["particles/all/position/step"].shape[0]
+                    complete = int(h["parameters"].attrs["frames_complete"])
+                    h["particles/all/position/value"][frames - 1]
+                if not (frames == complete == int(said.group(1)) >= 1):
+                    failures.append("the partial trajectory holds %d frames, %d complete; the message says %s" %
+                                    (frames, complete, said.group(1)))
+                print("process 1 without room: status 1, %s holds %d complete frames" % (partial, frames))
+            except (OSError, KeyError) as e:
+                failures.append("the partial trajectory %s does not read: %s" % (partial, e))
     elif a.kill_after:
         out = os.path.join(a.workdir, name + "-killed.h5")
         r = mpirun(2, [a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", out,
