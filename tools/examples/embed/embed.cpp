@@ -8,10 +8,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 #include "volpar/engine/builders/fill.hpp"
 #include "volpar/engine/builders/shapes.hpp"
 #include "volpar/engine/core/version.hpp"
+#include "volpar/engine/io/h5md_reader.hpp"
+#include "volpar/engine/io/h5md_writer.hpp"
 #include "volpar/engine/world.hpp"
 
 namespace {
@@ -83,5 +86,23 @@ int main() {
   const double rest = world.bodies().state[id.value().index()].position.z();
   std::printf("t = %.4f s: z = %.6f m, resting at %.6f m\n", world.time(), rest, 0.5 * size);
   const bool rests = std::abs(rest - 0.5 * size) < 0.1 * radius;
-  return fell && rests && same ? 0 : 1;
+
+  // the resting world as a trajectory of one frame (docs/trajectory-format.md), read back
+  const std::string path = (std::filesystem::temp_directory_path() / "volpar-embed.h5").string();
+  TrajectoryMeta meta;
+  meta.sceneName = "embed";
+  bool stored = false;
+  if (auto writer = H5mdWriter::create(path, world, meta); writer.ok())
+    stored = writer.value()->writeFrame(world).ok() && writer.value()->close().ok();
+  if (auto reader = H5mdReader::open(path); stored && reader.ok()) {
+    const auto summary = reader.value()->summary();
+    const auto positions = reader.value()->positions(0);
+    stored = summary.ok() && positions.ok() && summary.value().frames == 1 && positions.value().size() == world.particles().size() &&
+             std::memcmp(positions.value().data(), world.particles().position.data(), positions.value().size() * sizeof(Vec3)) == 0;
+  } else {
+    stored = false;
+  }
+  std::filesystem::remove(path);
+  std::printf("trajectory: the last state written and read back %s\n", stored ? "as it was" : "differently");
+  return fell && rests && same && stored ? 0 : 1;
 }
