@@ -674,6 +674,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
   auto impl = std::make_unique<Impl>();
   Io& io = impl->io;
   const bool together = processes && processes->size() > 1;
+  const bool lead = !together || processes->rank() == 0;  // (creates the file under its own name)
   if (together) {
     io.rank = processes->rank();
     io.size = processes->size();
@@ -892,7 +893,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     impl->bodyIndex.resize(p.size());
     check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
     std::error_code ec;
-    if (io.lead()) std::filesystem::rename(creating, path, ec);  // (HDF5 goes on writing through its open descriptor)
+    if (lead) std::filesystem::rename(creating, path, ec);  // (HDF5 goes on writing through its open descriptor)
     if (together && processes->any(static_cast<bool>(ec)) && !ec) throw H5Failure{"process 0 could not rename " + creating};
     if (ec) throw H5Failure{"rename " + creating + ": " + ec.message()};
   } catch (const H5Failure& e) {
@@ -901,7 +902,7 @@ Result<std::unique_ptr<H5mdWriter>> H5mdWriter::create(const std::string& path, 
     if (together) static_cast<void>(impl.release());
     impl.reset();
     std::error_code ignored;
-    if (io.lead()) std::filesystem::remove(creating, ignored);
+    if (lead) std::filesystem::remove(creating, ignored);
     return Error{path, 0, 0, "cannot write trajectory (" + e.what + ")"};
   }
   auto writer = std::unique_ptr<H5mdWriter>(new H5mdWriter(std::move(impl), path, world.particles().size()));
