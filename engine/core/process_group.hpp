@@ -45,7 +45,7 @@ void readBytes(const std::byte*& from, std::vector<T>& v) {
   std::memcpy(&n, from, sizeof n);
   from += sizeof n;
   v.resize(n);
-  std::memcpy(static_cast<void*>(v.data()), from, n * sizeof(T));
+  if (n > 0) std::memcpy(static_cast<void*>(v.data()), from, n * sizeof(T));  // (an empty vector's data() may be null)
   from += n * sizeof(T);
 }
 template <class T>
