@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <limits>
+#include <chrono>
 
 namespace volpar {
 
@@ -12,14 +15,10 @@ namespace {
 /// moves its neighbours by a centimetre in a few steps).
 constexpr double kListSkin = 0.25;
 
-/// Contact between particles a and b (world positions, radii) if they touch, or come within `margin` x
-/// (r_a + r_b) plus `sweep` [m] of touching (a speculative contact, negative depth).
-bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, double sweep, ParticleContact& c) {
-  const Vec3 d = p.position[b.index()] - p.position[a.index()];
-  const double rsum = p.radius[a.index()] + p.radius[b.index()];
-  const double dist2 = d.squaredNorm();
-  const double reach = rsum * (1.0 + margin) + sweep;
-  if (!(dist2 < reach * reach)) return false;
+/// The contact of particles a and b (world positions, radii) at centre distance squared `dist2`, whose radii
+/// sum to `rsum` (what touch() and the processes' merge both compute it from, with the same arithmetic).
+void pairContact(const ParticleStore& p, ParticleId a, ParticleId b, const Vec3& d, double rsum, double dist2,
+                 ParticleContact& c) {
   const double dist = std::sqrt(dist2);
   c.a = a;
   c.b = b;
@@ -28,7 +27,42 @@ bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, do
   c.normal = dist > 1e-12 * rsum ? Vec3(d / dist) : Vec3::UnitZ();
   c.depth = rsum - dist;
   c.point = p.position[a.index()] + c.normal * (p.radius[a.index()] - 0.5 * c.depth);
+}
+
+/// Contact between particles a and b (world positions, radii) if they touch, or come within `margin` x
+/// (r_a + r_b) plus `sweep` [m] of touching (a speculative contact, negative depth).
+bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, double sweep, ParticleContact& c) {
+  const Vec3 d = p.position[b.index()] - p.position[a.index()];
+  const double rsum = p.radius[a.index()] + p.radius[b.index()];
+  const double dist2 = d.squaredNorm();
+  const double reach = rsum * (1.0 + margin) + sweep;
+  if (!(dist2 < reach * reach)) return false;
+  pairContact(p, a, b, d, rsum, dist2, c);
   return true;
+}
+
+/// The same contact from the two ids alone (particles a and b, found touching by the search).
+void pairContact(const ParticleStore& p, ParticleId a, ParticleId b, ParticleContact& c) {
+  const Vec3 d = p.position[b.index()] - p.position[a.index()];
+  pairContact(p, a, b, d, p.radius[a.index()] + p.radius[b.index()], d.squaredNorm(), c);
+}
+
+/// Height of particle pi's centre above plane pl [m].
+double heightAbove(const ParticleStore& p, ParticleId pi, const Plane& pl) {
+  return pl.normal.dot(p.position[pi.index()]) - pl.offset;
+}
+
+/// The contact of particle pi with plane `plane` (pl), its centre `height` above it.
+void planeContact(const ParticleStore& p, ParticleId pi, PlaneId plane, const Plane& pl, double height,
+                  ParticleContact& c) {
+  const double r = p.radius[pi.index()];
+  c.a = pi;
+  c.b = ParticleId{};
+  c.plane = plane;
+  c.normal = -pl.normal;
+  c.depth = r - height;
+  // midpoint between the particle's lowest point and its foot on the plane
+  c.point = p.position[pi.index()] - pl.normal * (0.5 * (r + height));
 }
 
 /// Cell index of coordinate v (grid origin o, cell width w), clamped to [-1, n] before the integer
@@ -300,15 +334,10 @@ void ContactFinder::planeContacts(const ParticleStore& p, const BodyStore& bodie
   const double swept = sweepReach(bodies, id, BodyId{}, pl.normal);
   for (const ParticleId pi : bodies.info[id.index()].particles) {
     const double r = p.radius[pi.index()];
-    const double height = pl.normal.dot(p.position[pi.index()]) - pl.offset;
+    const double height = heightAbove(p, pi, pl);
     if (!(height < r * (1.0 + margin_) + swept)) continue;
     ParticleContact c;
-    c.a = pi;
-    c.plane = plane;
-    c.normal = -pl.normal;
-    c.depth = r - height;
-    // midpoint between the particle's lowest point and its foot on the plane
-    c.point = p.position[pi.index()] - pl.normal * (0.5 * (r + height));
+    planeContact(p, pi, plane, pl, height, c);
     out.contacts.push_back(c);
   }
   const auto count = static_cast<std::uint32_t>(out.contacts.size()) - first;
@@ -319,10 +348,45 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
                          std::span<const BodyPair> pairs, std::span<const BodyPlanePair> planePairs,
                          std::span<const Plane> planes, std::span<const Aabb> boxes, ContactSet& out,
                          ThreadPool* pool) {
-  // (out keeps its size until the merge below resizes it: only entries beyond the last step's are
-  // initialised before they are overwritten)
   if (adjacencyDirty_) rebuildAdjacency(particles, connectors);
   for (const BodyId id : deformables_) buildGrid(grids_[id.index()], bodies.info[id.index()].particles, particles.position, particles);
+  const int ranks = processes_ ? processes_->size() : 1;
+  if (ranks == 1) {
+    search(particles, bodies, pairs, planePairs, planes, deformables_, boxes, out, pool);
+    return;
+  }
+  // this process's contiguous share of each kind of pair: of the body pairs, the share that the processes'
+  // search times of the last step make even (every process divides alike from the same times; the
+  // contacts found do not depend on the division), of the planes' pairs and self-contacts an equal share
+  const int me = processes_->rank();
+  const auto count = static_cast<std::size_t>(ranks);
+  if (boundary_.size() != count + 1) {
+    boundary_.resize(count + 1);
+    for (std::size_t r = 0; r <= count; ++r) boundary_[r] = static_cast<double>(r) / static_cast<double>(count);
+  }
+  const auto share = [&](auto all) {
+    const std::size_t first = firstShare(me, ranks, all.size()), last = firstShare(me + 1, ranks, all.size());
+    return all.subspan(first, last - first);
+  };
+  const auto at = [&](std::size_t r) {
+    return r == count ? pairs.size() : std::min(pairs.size(), static_cast<std::size_t>(boundary_[r] * static_cast<double>(pairs.size())));
+  };
+  const std::size_t pairFirst = at(static_cast<std::size_t>(me)), pairLast = std::max(pairFirst, at(static_cast<std::size_t>(me) + 1));
+  const auto started = std::chrono::steady_clock::now();
+  const auto [bodyGroups, planeGroups] =
+      search(particles, bodies, pairs.subspan(pairFirst, pairLast - pairFirst), share(planePairs), planes,
+             share(std::span<const BodyId>(deformables_)), boxes, mine_, pool);
+  searchSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  gatherShares(particles, planes, mine_, bodyGroups, planeGroups, out, pool);
+}
+
+std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& particles, const BodyStore& bodies,
+                                                          std::span<const BodyPair> pairs,
+                                                          std::span<const BodyPlanePair> planePairs,
+                                                          std::span<const Plane> planes, std::span<const BodyId> deformables,
+                                                          std::span<const Aabb> boxes, ContactSet& out, ThreadPool* pool) {
+  // (out keeps its size until the merge below resizes it: only entries beyond the last step's are
+  // initialised before they are overwritten)
   // body pairs, then bodies on planes, in chunks of contiguous ranges that the workers take as they go;
   // the chunks' outputs are merged in order, all body pairs' contacts first, then all planes'
   const bool shared = pool && pool->worthSharing(pairs.size(), 512);
@@ -369,6 +433,7 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
     listed += w.cache.pairs.size();
     reusedPairs_ += w.reused;
   }
+  const std::size_t bodyGroups = groups;
   for (std::size_t k = 0; k < chunks; ++k) {
     Chunk& w = chunks_[k];
     w.planeContactBase = contacts;
@@ -408,7 +473,96 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
         return std::make_pair(x.a, x.b) < std::make_pair(y.a, y.b);
       }))
     cache_.clear();
-  for (const BodyId id : deformables_) selfContacts(particles, id, out);
+  for (const BodyId id : deformables) selfContacts(particles, id, out);
+  return {bodyGroups, groups - bodyGroups};
+}
+
+void ContactFinder::gatherShares(const ParticleStore& particles, std::span<const Plane> planes, const ContactSet& mine,
+                                 std::size_t bodyGroups, std::size_t planeGroups, ContactSet& out, ThreadPool* pool) {
+  // what travels: how many groups of body pairs and of planes lead, the groups, and each contact's two
+  // particle ids (the rest of a contact follows from them)
+  ids_.resize(mine.contacts.size());
+  for (std::size_t i = 0; i < mine.contacts.size(); ++i) ids_[i] = {mine.contacts[i].a, mine.contacts[i].b};
+  const ShareHeader header{bodyGroups, planeGroups, searchSeconds_};
+  bytes_.resize(sizeof header);
+  std::memcpy(bytes_.data(), &header, sizeof header);
+  appendBytes(bytes_, mine.groups);
+  appendBytes(bytes_, ids_);
+  processes_->gather(bytes_, gathered_);
+  const auto ranks = static_cast<std::size_t>(processes_->size());
+  const auto me = static_cast<std::uint32_t>(processes_->rank());
+  if (shares_.size() < ranks) shares_.resize(ranks);
+  pace_.resize(ranks);
+  const std::byte* at = gathered_.data();
+  std::size_t groups = 0, contacts = 0;
+  for (std::size_t r = 0; r < ranks; ++r) {
+    Share& s = shares_[r];
+    readBytes(at, s.header);
+    readBytes(at, s.groups);
+    readBytes(at, s.ids);
+    groups += s.groups.size();
+    contacts += s.ids.size();
+  }
+  // the groups in one process's order: every process's body pairs (the processes' shares follow each other
+  // in the pairs' order), then every process's planes, then every process's self-contacts
+  out.groups.resize(groups);
+  out.contacts.resize(contacts);
+  fromShare_.resize(groups);
+  fromFirst_.resize(groups);
+  std::size_t gi = 0;
+  std::uint32_t first = 0;
+  for (int kind = 0; kind < 3; ++kind)
+    for (std::size_t r = 0; r < ranks; ++r) {
+      const Share& s = shares_[r];
+      const std::size_t planesFirst = s.header.bodyGroups, selfFirst = planesFirst + s.header.planeGroups;
+      const std::size_t begin = kind == 0 ? 0 : kind == 1 ? planesFirst : selfFirst;
+      const std::size_t end = kind == 0 ? planesFirst : kind == 1 ? selfFirst : s.groups.size();
+      for (std::size_t k = begin; k < end; ++k, ++gi) {
+        ContactGroup g = s.groups[k];
+        fromShare_[gi] = static_cast<std::uint32_t>(r);
+        fromFirst_[gi] = g.first;
+        g.first = first;
+        first += g.count;
+        out.groups[gi] = g;
+      }
+    }
+  // each contact made from its two ids as the search made it
+  const auto make = [&](int, std::size_t begin, std::size_t end) {
+    for (std::size_t g = begin; g < end; ++g) {
+      const ContactGroup& group = out.groups[g];
+      const std::pair<ParticleId, ParticleId>* ids = shares_[fromShare_[g]].ids.data() + fromFirst_[g];
+      ParticleContact* c = out.contacts.data() + group.first;
+      if (fromShare_[g] == me) {
+        std::copy_n(mine.contacts.data() + fromFirst_[g], group.count, c);
+      } else if (group.plane.valid()) {
+        const Plane& pl = planes[group.plane.index()];
+        for (std::uint32_t k = 0; k < group.count; ++k)
+          planeContact(particles, ids[k].first, group.plane, pl, heightAbove(particles, ids[k].first, pl), c[k]);
+      } else {
+        for (std::uint32_t k = 0; k < group.count; ++k) pairContact(particles, ids[k].first, ids[k].second, c[k]);
+      }
+    }
+  };
+  if (pool && pool->worthSharing(groups, 256)) pool->run(groups, make);
+  else make(0, 0, groups);
+  // the next step's division of the body pairs: each process's share moved a tenth of the way towards one
+  // in proportion to its pace (pairs a second) in this step, when the slowest took a fifth longer than the
+  // fastest (a pair that changes process is searched afresh by its new one: moving the division by much
+  // at once would slow the process that takes the pairs over, and throw the division back)
+  double paces = 0.0, slowest = 0.0, fastest = std::numeric_limits<double>::infinity();
+  for (std::size_t r = 0; r < ranks; ++r) {
+    const double width = boundary_[r + 1] - boundary_[r];
+    pace_[r] = shares_[r].header.seconds > 0.0 ? width / shares_[r].header.seconds : 0.0;
+    paces += pace_[r];
+    slowest = std::max(slowest, shares_[r].header.seconds);
+    fastest = std::min(fastest, shares_[r].header.seconds);
+  }
+  if (!(paces > 0.0) || !std::isfinite(paces) || !(slowest > 1.2 * fastest)) return;
+  double edge = 0.0;
+  for (std::size_t r = 0; r + 1 < ranks; ++r) {
+    edge += pace_[r] / paces;
+    boundary_[r + 1] += 0.1 * (edge - boundary_[r + 1]);
+  }
 }
 
 }  // namespace volpar

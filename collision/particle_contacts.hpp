@@ -22,6 +22,13 @@
 // how far any particle pair's distance can have changed), no pair outside the list can have come within
 // reach, so the next steps test only the listed pairs: the same contacts, in the same order, as a fresh
 // search. A resting pile then costs a distance test per listed pair.
+//
+// Across processes (`setProcesses`, docs/distributed.md): each process searches a contiguous share of the
+// body pairs, of the bodies' plane pairs and of the deformable bodies' self-contacts, keeping the candidate
+// lists of its own pairs only, and the processes then hand each other the particle pairs they found (two ids
+// each). Every process computes the contacts of every pair from those ids with the search's own arithmetic,
+// in the search's order, so each holds the contacts one process alone would find, bit for bit. A pair whose
+// list another process keeps is searched afresh, which finds the same contacts.
 
 #include <cstdint>
 #include <span>
@@ -33,6 +40,7 @@
 #include "volpar/engine/core/connector_store.hpp"
 #include "volpar/engine/core/particle_store.hpp"
 #include "volpar/engine/core/plane.hpp"
+#include "volpar/engine/core/process_group.hpp"
 #include "volpar/engine/core/thread_pool.hpp"
 
 namespace volpar {
@@ -75,6 +83,10 @@ class ContactFinder {
   [[nodiscard]] double margin() const { return margin_; }
   /// The step [s] over which a pair's relative motion widens its reach (0: the margin alone).
   void setSweepTime(double dt) { sweepTime_ = dt; }
+  /// Shares later searches with other processes, each finding the contacts of the same pairs (nullptr: this
+  /// process alone). The group stays the caller's.
+  void setProcesses(ProcessGroup* processes) { processes_ = processes; }
+  [[nodiscard]] ProcessGroup* processes() const { return processes_; }
   /// Connector adjacency must be rebuilt (connectors added or broken).
   void connectorsChanged() { adjacencyDirty_ = true; }
   /// Rebuilds the connector adjacency now (after connectors broke).
@@ -92,7 +104,7 @@ class ContactFinder {
     reuse_ = reuse;
     if (!reuse) cache_.clear();
   }
-  /// Body pairs whose candidate lists were reused in the last find().
+  /// Body pairs whose candidate lists were reused in the last find() (by this process).
   [[nodiscard]] std::size_t reusedPairs() const { return reusedPairs_; }
 
   /// Whether particles a and b (of one body) are joined by an unbroken connector.
@@ -166,6 +178,16 @@ class ContactFinder {
                   double sweep, double skin, ContactSet& out, std::vector<std::pair<ParticleId, ParticleId>>* listed) const;
   void bodyPair(const ParticleStore& particles, const BodyStore& bodies, BodyId a, BodyId b,
                 std::span<const Aabb> boxes, Chunk& w) const;
+  /// The contacts of the given pairs (this process's share) into `out`: body pairs' groups, then planes',
+  /// then self-contacts'. Returns the number of body pairs' groups and of planes' groups.
+  std::pair<std::size_t, std::size_t> search(const ParticleStore& particles, const BodyStore& bodies,
+                                             std::span<const BodyPair> pairs, std::span<const BodyPlanePair> planePairs,
+                                             std::span<const Plane> planes, std::span<const BodyId> deformables,
+                                             std::span<const Aabb> boxes, ContactSet& out, ThreadPool* pool);
+  /// Every process's share, searched into `mine`, handed to every process and made into the contacts
+  /// of all pairs, in the order of one process's search.
+  void gatherShares(const ParticleStore& particles, std::span<const Plane> planes, const ContactSet& mine,
+                    std::size_t bodyGroups, std::size_t planeGroups, ContactSet& out, ThreadPool* pool);
   void selfContacts(const ParticleStore& particles, BodyId id, ContactSet& out) const;
   void planeContacts(const ParticleStore& particles, const BodyStore& bodies, BodyId id, PlaneId plane,
                      const Plane& pl, ContactSet& out) const;
@@ -183,6 +205,25 @@ class ContactFinder {
   double margin_ = 0.0;
   double sweepTime_ = 0.0;
   std::vector<std::uint32_t> fill_;  // counting-sort scratch, reused
+  // across processes: this process's share of the contacts, what travels, and what arrived (kept between steps)
+  ProcessGroup* processes_ = nullptr;
+  ContactSet mine_;
+  std::vector<std::pair<ParticleId, ParticleId>> ids_;
+  std::vector<std::byte> bytes_, gathered_;
+  struct ShareHeader {
+    std::uint64_t bodyGroups = 0, planeGroups = 0;  // the groups of body pairs, then of planes, lead
+    double seconds = 0.0;                           // its search's
+  };
+  struct Share {
+    ShareHeader header;
+    std::vector<ContactGroup> groups;
+    std::vector<std::pair<ParticleId, ParticleId>> ids;
+  };
+  std::vector<Share> shares_;
+  std::vector<std::uint32_t> fromShare_, fromFirst_;  // per group of the whole set: its process and first id
+  std::vector<double> boundary_;  // where each process's share of the body pairs starts, as a fraction [R + 1]
+  std::vector<double> pace_;
+  double searchSeconds_ = 0.0;
 };
 
 }  // namespace volpar

@@ -214,6 +214,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
 }
 
 void World::setProcesses(ProcessGroup* processes) {
+  contactFinder_.setProcesses(processes);
   narrowPhase_.setProcesses(processes);
   solver_.setProcesses(processes);
 }

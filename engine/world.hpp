@@ -125,8 +125,8 @@ class World {
   /// Work too small to be worth waking the workers runs on the calling thread, unless `shareAll`.
   void setThreads(int threads, bool shareAll = false);
   /// Shares the work of later steps with other processes, each stepping this same world
-  /// (docs/distributed.md): the narrow phase's contact groups and the contact solver's iterations; null:
-  /// none. The trajectory is the same bit for bit.
+  /// (docs/distributed.md): the particle contacts' pairs, the narrow phase's contact groups and the contact
+  /// solver's iterations; null: none. The trajectory is the same bit for bit.
   void setProcesses(ProcessGroup* processes);
 
   [[nodiscard]] const WorldSettings& settings() const { return settings_; }

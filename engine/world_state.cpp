@@ -499,7 +499,9 @@ Status World::restoreState(const StateArchive& archive) {
   for (std::size_t k = 0; k < proxied.size(); ++k)
     broadphase_.restoreBody(BodyId(proxied[k]), Aabb{fatLo[k], fatHi[k]}, bodies_.info[proxied[k]].kind == BodyKind::Static);
   const double contactMargin = contactFinder_.margin();
+  ProcessGroup* const processes = contactFinder_.processes();
   contactFinder_ = ContactFinder();
+  contactFinder_.setProcesses(processes);
   contactFinder_.setMargin(contactMargin);
   contactFinder_.setSweepTime(settings_.dt);
   for (std::size_t i = 0; i < nb; ++i)

@@ -99,18 +99,3 @@ INSTANTIATE_TEST_SUITE_P(Leaves, SolverRanks, ::testing::Values(4, 128),
 
 }  // namespace
 }  // namespace volpar
-
-int main(int argc, char** argv) {
-  MPI_Init(&argc, &argv);
-  ::testing::InitGoogleTest(&argc, argv);
-  int rank = 0;
-  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-  // (one process reports; every one runs every test and agrees on the outcome)
-  if (rank != 0) delete ::testing::UnitTest::GetInstance()->listeners().Release(
-      ::testing::UnitTest::GetInstance()->listeners().default_result_printer());
-  const int status = RUN_ALL_TESTS();
-  int worst = 0;
-  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-  MPI_Finalize();
-  return worst;
-}
