@@ -1,10 +1,10 @@
 #include "volpar/collision/particle_contacts.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <chrono>
 
 namespace volpar {
 
@@ -369,9 +369,11 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
     return all.subspan(first, last - first);
   };
   const auto at = [&](std::size_t r) {
-    return r == count ? pairs.size() : std::min(pairs.size(), static_cast<std::size_t>(boundary_[r] * static_cast<double>(pairs.size())));
+    const auto n = static_cast<double>(pairs.size());
+    return r == count ? pairs.size() : std::min(pairs.size(), static_cast<std::size_t>(boundary_[r] * n));
   };
-  const std::size_t pairFirst = at(static_cast<std::size_t>(me)), pairLast = std::max(pairFirst, at(static_cast<std::size_t>(me) + 1));
+  // (the boundaries never decrease: moveBoundaries() keeps them in order)
+  const std::size_t pairFirst = at(static_cast<std::size_t>(me)), pairLast = at(static_cast<std::size_t>(me) + 1);
   const auto started = std::chrono::steady_clock::now();
   const auto [bodyGroups, planeGroups] =
       search(particles, bodies, pairs.subspan(pairFirst, pairLast - pairFirst), share(planePairs), planes,
@@ -492,7 +494,6 @@ void ContactFinder::gatherShares(const ParticleStore& particles, std::span<const
   const auto ranks = static_cast<std::size_t>(processes_->size());
   const auto me = static_cast<std::uint32_t>(processes_->rank());
   if (shares_.size() < ranks) shares_.resize(ranks);
-  pace_.resize(ranks);
   const std::byte* at = gathered_.data();
   std::size_t groups = 0, contacts = 0;
   for (std::size_t r = 0; r < ranks; ++r) {
@@ -545,23 +546,30 @@ void ContactFinder::gatherShares(const ParticleStore& particles, std::span<const
   };
   if (pool && pool->worthSharing(groups, 256)) pool->run(groups, make);
   else make(0, 0, groups);
-  // the next step's division of the body pairs: each process's share moved a tenth of the way towards one
-  // in proportion to its pace (pairs a second) in this step, when the slowest took a fifth longer than the
-  // fastest (a pair that changes process is searched afresh by its new one: moving the division by much
-  // at once would slow the process that takes the pairs over, and throw the division back)
+  moveBoundaries();
+}
+
+void ContactFinder::moveBoundaries() {
+  // each process's share moved a tenth of the way towards one in proportion to its pace (pairs a second) in
+  // the last step, when the slowest took a fifth longer than the fastest (a pair that changes process is
+  // searched afresh by its new one: moving the division by much at once would slow the process that takes
+  // the pairs over, and throw the division back)
+  const std::size_t ranks = boundary_.size() - 1;
+  pace_.resize(ranks);
   double paces = 0.0, slowest = 0.0, fastest = std::numeric_limits<double>::infinity();
   for (std::size_t r = 0; r < ranks; ++r) {
-    const double width = boundary_[r + 1] - boundary_[r];
-    pace_[r] = shares_[r].header.seconds > 0.0 ? width / shares_[r].header.seconds : 0.0;
+    const double seconds = shares_[r].header.seconds;
+    pace_[r] = seconds > 0.0 ? (boundary_[r + 1] - boundary_[r]) / seconds : 0.0;
     paces += pace_[r];
-    slowest = std::max(slowest, shares_[r].header.seconds);
-    fastest = std::min(fastest, shares_[r].header.seconds);
+    slowest = std::max(slowest, seconds);
+    fastest = std::min(fastest, seconds);
   }
   if (!(paces > 0.0) || !std::isfinite(paces) || !(slowest > 1.2 * fastest)) return;
   double edge = 0.0;
   for (std::size_t r = 0; r + 1 < ranks; ++r) {
     edge += pace_[r] / paces;
-    boundary_[r + 1] += 0.1 * (edge - boundary_[r + 1]);
+    // (kept in order against rounding: each share must start where the one before it ends)
+    boundary_[r + 1] = std::max(boundary_[r], boundary_[r + 1] + 0.1 * (edge - boundary_[r + 1]));
   }
 }
 

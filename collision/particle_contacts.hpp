@@ -188,6 +188,8 @@ class ContactFinder {
   /// of all pairs, in the order of one process's search.
   void gatherShares(const ParticleStore& particles, std::span<const Plane> planes, const ContactSet& mine,
                     std::size_t bodyGroups, std::size_t planeGroups, ContactSet& out, ThreadPool* pool);
+  /// The next step's division of the body pairs (boundary_), from every process's search time in this one.
+  void moveBoundaries();
   void selfContacts(const ParticleStore& particles, BodyId id, ContactSet& out) const;
   void planeContacts(const ParticleStore& particles, const BodyStore& bodies, BodyId id, PlaneId plane,
                      const Plane& pl, ContactSet& out) const;
@@ -222,7 +224,7 @@ class ContactFinder {
   std::vector<Share> shares_;
   std::vector<std::uint32_t> fromShare_, fromFirst_;  // per group of the whole set: its process and first id
   std::vector<double> boundary_;  // where each process's share of the body pairs starts, as a fraction [R + 1]
-  std::vector<double> pace_;
+  std::vector<double> pace_;      // scratch of moveBoundaries()
   double searchSeconds_ = 0.0;
 };
 

@@ -6,22 +6,15 @@
 #include <gtest/gtest.h>
 #include <mpi.h>
 
-#include <optional>
-
+#include "tests/distributed/mpi_test_support.hpp"
+#include "tests/support/test_support.hpp"
 #include "volpar/distributed/mpi_process_group.hpp"
-#include "volpar/engine/scene/scene_build.hpp"
-#include "volpar/engine/scene/scene_loader.hpp"
 #include "volpar/engine/world.hpp"
 
 namespace volpar {
 namespace {
 
-/// True on every process when it holds on every process.
-bool everywhere(bool ok) {
-  int mine = ok ? 1 : 0, all = 0;
-  MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
-  return all == 1;
-}
+using test::everywhere;
 
 // Rigid boxes on a cloth and on a soft cube, a second cloth on a static ball, a floor: pairs of rigid bodies,
 // rigid and deformable ones, bodies on a plane, and two cloths that fold onto themselves.
@@ -49,20 +42,6 @@ bodies:
   - {name: box4, shape: {box: {size: [0.2, 0.2, 0.2]}}, fill: {radius: 0.05}, material: m, position: [1.2, 0.0, 0.7],
      velocity: [0, 0, -2]}
 )";
-
-std::optional<BuiltScene> mixed() {
-  auto desc = parseScene(kScene, "mixed.yaml");
-  if (!desc.ok()) {
-    ADD_FAILURE() << desc.error().toString();
-    return std::nullopt;
-  }
-  auto built = buildScene(*desc);
-  if (!built.ok()) {
-    ADD_FAILURE() << built.error().toString();
-    return std::nullopt;
-  }
-  return std::move(*built);
-}
 
 bool same(const ContactSet& x, const ContactSet& y) {
   if (x.contacts.size() != y.contacts.size() || x.groups.size() != y.groups.size()) return false;
@@ -104,12 +83,7 @@ struct Compared {
 /// processes through `exchange`, comparing the two.
 Compared compare(ProcessGroup& exchange, int threads, int steps) {
   Compared result;
-  auto built = mixed();
-  if (!built) {
-    result.allSame = false;
-    return result;
-  }
-  World& w = built->world;
+  World w = test::worldFromString(kScene, "mixed.yaml");
   ContactFinder shared;
   for (std::size_t i = 0; i < w.bodies().size(); ++i) shared.addBody(BodyId(i), w.particles(), w.bodies());
   shared.setMargin(w.settings().contactMargin);

@@ -9,21 +9,16 @@
 
 #include <cstdio>
 
+#include "tests/distributed/mpi_test_support.hpp"
 #include "tests/support/contact_lattice.hpp"
 #include "volpar/distributed/mpi_process_group.hpp"
 
 namespace volpar {
 namespace {
 
+using test::everywhere;
 using test::Solved;
 using test::solveLattice;
-
-/// True on every process when it holds on every process.
-bool everywhere(bool ok) {
-  int mine = ok ? 1 : 0, all = 0;
-  MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
-  return all == 1;
-}
 
 bool same(const Solved& a, const Solved& b) {
   if (a.bodies.size() != b.bodies.size() || a.impulses != b.impulses) return false;
