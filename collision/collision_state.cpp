@@ -228,10 +228,11 @@ bool NormalCache::restore(StateReader& r) {
 }
 
 void NarrowPhase::saveCache(StateArchive& archive) const {
+  const Cache cache = wholeCache();
   std::vector<std::uint32_t> groups;
   std::vector<Quat> rotation;
   std::vector<Vec3> position;
-  for (const CachedGroup& g : cache_.groups) {
+  for (const CachedGroup& g : cache.groups) {
     groups.insert(groups.end(), {g.key.kind, g.key.a, g.key.b, g.pairFirst, g.pairCount, g.patchFirst, g.patchCount});
     rotation.push_back(g.relRotation);
     position.push_back(g.relPosition);
@@ -240,13 +241,13 @@ void NarrowPhase::saveCache(StateArchive& archive) const {
   archive.putQuat("narrow_phase/group_rotation", rotation);
   archive.putVec3("narrow_phase/group_position", position);
   std::vector<std::uint32_t> pairs;
-  for (const auto& [a, b] : cache_.pairs) pairs.insert(pairs.end(), {raw(a), raw(b)});
+  for (const auto& [a, b] : cache.pairs) pairs.insert(pairs.end(), {raw(a), raw(b)});
   archive.put("narrow_phase/pairs", std::span<const std::uint32_t>(pairs), 2);
-  archive.put("narrow_phase/order", std::span<const std::uint32_t>(cache_.order));
+  archive.put("narrow_phase/order", std::span<const std::uint32_t>(cache.order));
   std::vector<double> vectors, margin;
   std::vector<std::uint32_t> count;
   std::vector<std::uint8_t> flags;
-  for (const CachedPatch& p : cache_.patches) {
+  for (const CachedPatch& p : cache.patches) {
     for (const Vec3* v : {&p.normal, &p.core[0], &p.core[1]}) vectors.insert(vectors.end(), {v->x(), v->y(), v->z()});
     margin.push_back(p.margin);
     count.push_back(p.count);

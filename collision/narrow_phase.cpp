@@ -7,10 +7,6 @@
 
 namespace volpar {
 
-namespace {
-
-}  // namespace
-
 const char* planeCaseName(PlaneCase c) {
   switch (c) {
     case PlaneCase::VertexFace11: return "vertex_face_1_1";
@@ -245,23 +241,27 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
     shareContacts(contacts, out.depthAlongNormal);
     shareContacts(contacts, out.flipped);
   }
-  // the chunks' outputs at their places, copied by the workers
+  // the chunks' outputs at their places, copied by the workers: every process's patches, and the entries for
+  // reuse of this process's own chunks (with one process, the chunks are its own)
   std::size_t patches = 0, indices = 0, cachedGroups = 0, cachedPairs = 0, cachedOrder = 0, cachedPatches = 0;
   for (std::size_t k = 0; k < listed; ++k) {
     Output& o = list[k];
     o.patchBase = patches;
     o.contactBase = indices;
+    patches += o.patches.size();
+    indices += o.contacts.size();
+    out.stats += o.stats;
+  }
+  for (std::size_t k = 0; k < chunks; ++k) {
+    Output& o = chunks_[k];
     o.groupBase = cachedGroups;
     o.pairBase = cachedPairs;
     o.orderBase = cachedOrder;
     o.cachedPatchBase = cachedPatches;
-    patches += o.patches.size();
-    indices += o.contacts.size();
     cachedGroups += o.cache.groups.size();
     cachedPairs += o.cache.pairs.size();
     cachedOrder += o.cache.order.size();
     cachedPatches += o.cache.patches.size();
-    out.stats += o.stats;
   }
   out.patches.resize(patches);
   out.contacts.resize(indices);
@@ -269,92 +269,46 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   cache_.pairs.resize(cachedPairs);
   cache_.order.resize(cachedOrder);
   cache_.patches.resize(cachedPatches);
-  const auto copy = [&](int, std::size_t begin, std::size_t end) {
+  const auto copy = [&](std::size_t k) {
+    const Output& o = list[k];
+    const auto contactBase = static_cast<std::uint32_t>(o.contactBase);
+    for (std::size_t j = 0; j < o.patches.size(); ++j) {
+      ContactPatch patch = o.patches[j];
+      for (std::uint32_t i = patch.first; i < patch.first + patch.count; ++i)
+        out.patchOfContact[o.contacts[i]] = static_cast<std::uint32_t>(o.patchBase + j);
+      patch.first += contactBase;
+      out.patches[o.patchBase + j] = patch;
+    }
+    std::copy(o.contacts.begin(), o.contacts.end(), out.contacts.begin() + static_cast<std::ptrdiff_t>(o.contactBase));
+  };
+  const auto copyCache = [&](std::size_t k) {
+    const Output& o = chunks_[k];
+    for (std::size_t j = 0; j < o.cache.groups.size(); ++j) {
+      CachedGroup c = o.cache.groups[j];
+      c.pairFirst += static_cast<std::uint32_t>(o.pairBase);
+      c.patchFirst += static_cast<std::uint32_t>(o.cachedPatchBase);
+      cache_.groups[o.groupBase + j] = c;
+    }
+    std::copy(o.cache.pairs.begin(), o.cache.pairs.end(), cache_.pairs.begin() + static_cast<std::ptrdiff_t>(o.pairBase));
+    std::copy(o.cache.order.begin(), o.cache.order.end(), cache_.order.begin() + static_cast<std::ptrdiff_t>(o.orderBase));
+    std::copy(o.cache.patches.begin(), o.cache.patches.end(),
+              cache_.patches.begin() + static_cast<std::ptrdiff_t>(o.cachedPatchBase));
+  };
+  const auto copyBoth = [&](int, std::size_t begin, std::size_t end) {
     for (std::size_t k = begin; k < end; ++k) {
-      const Output& o = list[k];
-      const auto contactBase = static_cast<std::uint32_t>(o.contactBase);
-      for (std::size_t j = 0; j < o.patches.size(); ++j) {
-        ContactPatch patch = o.patches[j];
-        for (std::uint32_t i = patch.first; i < patch.first + patch.count; ++i)
-          out.patchOfContact[o.contacts[i]] = static_cast<std::uint32_t>(o.patchBase + j);
-        patch.first += contactBase;
-        out.patches[o.patchBase + j] = patch;
-      }
-      std::copy(o.contacts.begin(), o.contacts.end(), out.contacts.begin() + static_cast<std::ptrdiff_t>(o.contactBase));
-      for (std::size_t j = 0; j < o.cache.groups.size(); ++j) {
-        CachedGroup c = o.cache.groups[j];
-        c.pairFirst += static_cast<std::uint32_t>(o.pairBase);
-        c.patchFirst += static_cast<std::uint32_t>(o.cachedPatchBase);
-        cache_.groups[o.groupBase + j] = c;
-      }
-      std::copy(o.cache.pairs.begin(), o.cache.pairs.end(), cache_.pairs.begin() + static_cast<std::ptrdiff_t>(o.pairBase));
-      std::copy(o.cache.order.begin(), o.cache.order.end(), cache_.order.begin() + static_cast<std::ptrdiff_t>(o.orderBase));
-      std::copy(o.cache.patches.begin(), o.cache.patches.end(),
-                cache_.patches.begin() + static_cast<std::ptrdiff_t>(o.cachedPatchBase));
+      if (k < listed) copy(k);
+      if (k < chunks) copyCache(k);
     }
   };
-  if (pool && pool->worthSharing(listed, 1)) pool->run(listed, copy);
-  else copy(0, 0, listed);
-  // lookups need the keys in order (they are, as groups come sorted, but a caller may order them otherwise)
-  if (!std::is_sorted(cache_.groups.begin(), cache_.groups.end(),
-                      [](const CachedGroup& x, const CachedGroup& y) { return x.key < y.key; }))
-    cache_.clear();
-}
-
-namespace {
-
-/// Calls f on each part of a chunk's output that travels between processes, in one fixed order.
-template <class O, class F>
-void eachTravelling(O& o, const F& f) {
-  f(o.patches);
-  f(o.contacts);
-  f(o.stats);
-  f(o.cache.groups);
-  f(o.cache.pairs);
-  f(o.cache.order);
-  f(o.cache.patches);
-}
-
-}  // namespace
-
-std::size_t NarrowPhase::gatherChunks(std::size_t count) {
-  // (the chunks' vectors and counts as bytes: the processes are copies of one program on one kind of machine)
-  mine_.clear();
-  for (std::size_t k = 0; k < count; ++k) eachTravelling(chunks_[k], [&](const auto& part) { appendBytes(mine_, part); });
-  processes_->gather(mine_, all_);
-  std::size_t listed = 0;
-  const std::byte* at = all_.data();
-  const std::byte* const end = all_.data() + all_.size();
-  while (at < end) {
-    if (gathered_.size() <= listed) gathered_.resize(listed + 1);
-    eachTravelling(gathered_[listed++], [&](auto& part) { readBytes(at, part); });
-  }
-  return listed;
-}
-
-void NarrowPhase::divideGroups(const NarrowPhaseInput& in, const ContactSet& contacts) {
-  // a group whose patches are taken over costs about a ninth of one computed afresh (pile-1000's collapse:
-  // 0.65 against 6 microseconds a patch); the same estimate on every process, from the same cache
-  constexpr std::uint64_t kTakenOver = 1, kComputed = 9;
-  const std::size_t groups = contacts.groups.size();
-  match_.resize(groups);
-  CacheCursor cursor = cache_.groups.cbegin();
-  std::uint64_t total = 0;
-  for (std::size_t gi = 0; gi < groups; ++gi) {
-    const ContactGroup& g = contacts.groups[gi];
-    match_[gi] = settings_.reuse && cacheable(in, g) ? takenOver(in, contacts, g, cursor) : kNoMatch;
-    total += match_[gi] != kNoMatch ? kTakenOver : kComputed;
-  }
-  // process r starts at the first group before which the cost reaches r / R of the total
-  const auto ranks = static_cast<std::size_t>(processes_->size());
-  groupStart_.assign(ranks + 1, groups);
-  groupStart_[0] = 0;
-  std::uint64_t before = 0;
-  std::size_t r = 1;
-  for (std::size_t gi = 0; gi < groups && r < ranks; ++gi) {
-    while (r < ranks && before * ranks >= r * total) groupStart_[r++] = gi;
-    before += match_[gi] != kNoMatch ? kTakenOver : kComputed;
-  }
+  const std::size_t items = std::max(listed, chunks);
+  if (pool && pool->worthSharing(items, 1)) pool->run(items, copyBoth);
+  else copyBoth(0, 0, items);
+  // lookups need the keys in order (they are, as groups come sorted, but a caller may order them otherwise;
+  // with processes, every process decides alike from all the groups' keys)
+  const bool inOrder = ranks > 1 ? keysInOrder_
+                                 : std::is_sorted(cache_.groups.begin(), cache_.groups.end(),
+                                                  [](const CachedGroup& x, const CachedGroup& y) { return x.key < y.key; });
+  if (!inOrder) cache_.clear();
 }
 
 template <class T>

@@ -44,17 +44,24 @@ class NarrowPhase {
   [[nodiscard]] const PlaneSettings& settings() const { return settings_; }
 
   /// Shares the groups of later runs with other processes (null: none): each computes a contiguous run of
-  /// the groups, and every one gets every process's patches and cache (docs/distributed.md). Every process
-  /// calls run() with the same input and gets the same output, that of one process alone.
+  /// the groups, and every one gets every process's patches (docs/distributed.md). Every process calls run()
+  /// with the same input and gets the same output, that of one process alone. Each process keeps the
+  /// entries for reuse of the groups it computed; an entry goes to another process only when its group, still
+  /// to be taken over, has passed to that process.
   void setProcesses(ProcessGroup* processes) { processes_ = processes; }
   /// Patches and planes for every contact group. `pool` (optional) shares the groups among threads.
   void run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out, ThreadPool* pool = nullptr);
   /// Forgets the patches kept for reuse (the next run computes every patch).
   void clearCache();
-  /// Puts the patches kept for reuse under "narrow_phase/..." (collision_state.cpp).
+  /// Puts the patches kept for reuse under "narrow_phase/..." (collision_state.cpp): with processes, every
+  /// process's, as one process alone keeps them (so every process must call it).
   void saveCache(StateArchive& archive) const;
   /// Takes them back; false (with the reason in `reader`) where they do not fit together.
   bool restoreCache(StateReader& reader);
+  /// The groups whose patches this process keeps for reuse (with processes: those of its own groups).
+  [[nodiscard]] std::size_t cachedGroups() const { return cache_.groups.size(); }
+  /// With processes: the entries for reuse this process received from others in the last run.
+  [[nodiscard]] std::size_t entriesReceived() const { return entriesReceived_; }
 
  private:
   /// What identifies a group from one step to the next: kind 0 = body pair (a, b), 1 = body a and plane b.
@@ -142,13 +149,27 @@ class NarrowPhase {
   std::vector<std::byte> mine_, all_;
   std::vector<std::size_t> shareOffset_, shareCount_;
   std::vector<Output> gathered_;
-  /// With processes: per group, the cache entry whose patches it takes over (kNoMatch: none); and each
-  /// process's first group (and the end), the groups divided in runs of equal estimated cost.
+  /// With processes: per group of this process's run, the cache entry whose patches it takes over (kNoMatch:
+  /// none); and each process's first group (and the end), the groups divided in runs of equal estimated cost.
   std::vector<std::uint32_t> match_;
   std::vector<std::size_t> groupStart_;
-  /// Finds each group's cache entry (match_) and divides the groups among the processes (groupStart_).
+  /// With processes: per group a bit, set where this process keeps an entry it may take over (held_); the
+  /// same bits of every process, process by process (heldBy_), and their union (heldAnywhere_).
+  std::vector<std::uint64_t> held_, heldBy_, heldAnywhere_;
+  bool keysInOrder_ = true;  // (with processes: whether the cacheable groups come in key order)
+  std::size_t entriesReceived_ = 0;
+  /// Finds the groups whose patches each process can take over, divides the groups among the processes
+  /// (groupStart_), and hands each process the entries of its groups that another keeps (match_).
   void divideGroups(const NarrowPhaseInput& in, const ContactSet& contacts);
-  /// Every process's chunks, from each process's `count` chunks of chunks_, into gathered_; returns how many.
+  /// Hands over the entries of groups taken over that passed to another process; `words`: of the bits.
+  void moveEntries(const ContactSet& contacts, std::size_t words);
+  /// One cache entry as bytes (`tag`, the group, its pairs, order and patches), and back (appended to `to`).
+  static void appendEntry(std::vector<std::byte>& bytes, std::uint32_t tag, const Cache& from, std::size_t entry);
+  static std::uint32_t readEntry(const std::byte*& at, Cache& to);
+  /// Every process's entries as one process alone keeps them: in key order, each once.
+  [[nodiscard]] Cache wholeCache() const;
+  /// Every process's chunks, from each process's `count` chunks of chunks_, into gathered_ (their patches,
+  /// contacts and counts: the entries for reuse stay); returns how many.
   std::size_t gatherChunks(std::size_t count);
   /// Every process's values of `values` for the contacts of its groups.
   template <class T>

@@ -1,0 +1,145 @@
+// The narrow phase shared by MPI processes (run under mpirun with 1, 2 and 3 processes): each computes a run
+// of the contact groups and keeps the entries for reuse of its own groups, handing an entry over when its
+// group passes to another process; every process then holds the patches one process alone makes, bit for
+// bit, step after step, with one or two threads each. The entries are divided (each kept by one process)
+// and saved in a checkpoint as one process saves them.
+
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include "tests/distributed/mpi_test_support.hpp"
+#include "tests/support/test_support.hpp"
+#include "volpar/distributed/mpi_process_group.hpp"
+#include "volpar/engine/world.hpp"
+
+namespace volpar {
+namespace {
+
+using test::everywhere;
+
+// 64 crates falling into a pen in a heap (the groups' runs move between the processes as pairs meet and
+// part), and a soft cube among them (groups that are never kept for reuse).
+constexpr const char* kScene = R"(name: heap
+dt: 0.004166667
+duration: 2.0
+gravity: [0, 0, -9.81]
+solver: {iterations: 10, substeps: 4}
+materials:
+  m: {density: 1000, restitution: 0.1, friction: 0.5}
+planes:
+  - {normal: [0, 0, 1], offset: 0, material: m}
+  - {normal: [1, 0, 0], offset: -1.0, material: m}
+  - {normal: [-1, 0, 0], offset: -1.0, material: m}
+  - {normal: [0, 1, 0], offset: -1.0, material: m}
+  - {normal: [0, -1, 0], offset: -1.0, material: m}
+bodies:
+  - name: crate
+    shape: {box: {size: [0.3, 0.3, 0.3]}}
+    fill: {lattice: cubic, radius: 0.05, spacing: 0.1}
+    material: m
+    position: [-0.675, -0.675, 0.3]
+    repeat:
+      count: [4, 4, 4]
+      spacing: [0.45, 0.45, 0.45]
+      rotation_step: [{axis: [0, 0, 1], angle: 0.37}, {axis: [1, 0, 0], angle: 0.11}]
+  - {name: jelly, kind: deformable, shape: {box: {size: [0.3, 0.3, 0.3]}}, fill: {radius: 0.05},
+     connectors: {springs: {stiffness: 20000, damping: 5}}, material: m, position: [0.0, 0.0, 2.2]}
+)";
+
+bool same(const PatchSet& x, const PatchSet& y) {
+  if (x.patches.size() != y.patches.size() || x.contacts != y.contacts || x.depthAlongNormal != y.depthAlongNormal ||
+      x.patchOfContact != y.patchOfContact || x.flipped != y.flipped)
+    return false;
+  for (std::size_t i = 0; i < x.patches.size(); ++i) {
+    const ContactPatch &p = x.patches[i], &q = y.patches[i];
+    if (p.a != q.a || p.b != q.b || p.plane != q.plane || p.normal != q.normal || p.point != q.point ||
+        p.depth != q.depth || p.margin != q.margin || p.planeCase != q.planeCase || p.source != q.source ||
+        p.validated != q.validated || p.lookAhead != q.lookAhead || p.lookAheadCase != q.lookAheadCase ||
+        p.curvedSide != q.curvedSide || p.core != q.core || p.first != q.first || p.count != q.count)
+      return false;
+  }
+  return x.stats.patches == y.stats.patches && x.stats.reused == y.stats.reused &&
+         x.stats.candidates == y.stats.candidates && x.stats.byCase == y.stats.byCase;
+}
+
+bool same(const StateArchive& x, const StateArchive& y) {
+  if (x.arrays().size() != y.arrays().size()) return false;
+  for (std::size_t i = 0; i < x.arrays().size(); ++i) {
+    const StateArchive::Array &a = x.arrays()[i], &b = y.arrays()[i];
+    if (a.name != b.name || a.type != b.type || a.width != b.width || a.bytes != b.bytes) return false;
+  }
+  return true;
+}
+
+/// The sum of every process's `mine`.
+std::size_t sumOver(std::size_t mine) {
+  unsigned long long value = mine, sum = 0;
+  MPI_Allreduce(&value, &sum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+  return static_cast<std::size_t>(sum);
+}
+
+struct Compared {
+  bool allSame = true, divided = true, savedSame = true;
+  std::size_t patches = 0, reused = 0, received = 0, mostKept = 0, keptAlone = 0;
+};
+
+/// Steps the scene alone and, after every step, makes its patches again with a narrow phase shared by the
+/// processes through `exchange` (and with one of its own), comparing them with the world's.
+Compared compare(ProcessGroup& exchange, int threads, int steps) {
+  Compared result;
+  World w = test::worldFromString(kScene, "heap.yaml");
+  NarrowPhase shared, alone;
+  shared.setSettings(w.settings().planes);
+  alone.setSettings(w.settings().planes);
+  shared.setProcesses(&exchange);
+  ThreadPool pool(threads);
+  ThreadPool* const p = threads > 1 ? &pool : nullptr;
+  PatchSet fromShared, fromAlone;
+  // (the world's contacts and patches of its first state were made as it was built: step 0 compares those)
+  for (int step = 0; step <= steps; ++step) {
+    if (step > 0 && w.step() != StepStatus::Ok) {
+      ADD_FAILURE() << "step " << step;
+      result.allSame = false;
+      return result;
+    }
+    shared.run(w.narrowPhaseInput(), w.contacts(), fromShared, p);
+    alone.run(w.narrowPhaseInput(), w.contacts(), fromAlone, p);
+    result.allSame = result.allSame && same(fromShared, w.patches()) && same(fromAlone, w.patches());
+    // every entry kept by exactly one process
+    result.divided = result.divided && sumOver(shared.cachedGroups()) == alone.cachedGroups();
+    result.patches += w.patches().patches.size();
+    result.reused += w.patches().stats.reused;
+    result.received += shared.entriesReceived();
+    result.mostKept = std::max(result.mostKept, shared.cachedGroups());
+    result.keptAlone = std::max(result.keptAlone, alone.cachedGroups());
+    if (step % 100 == 50) {
+      StateArchive mine, one;
+      shared.saveCache(mine);
+      alone.saveCache(one);
+      result.savedSame = result.savedSame && same(mine, one);
+    }
+  }
+  return result;
+}
+
+TEST(NarrowPhaseRanks, EveryProcessMakesThePatchesOfOne) {
+  for (const int threads : {1, 2}) {
+    MpiProcessGroup exchange(MPI_COMM_WORLD);
+    const Compared c = compare(exchange, threads, 360);
+    const int ranks = exchange.size();
+    EXPECT_TRUE(everywhere(c.allSame)) << ranks << " processes, " << threads << " threads";
+    EXPECT_TRUE(everywhere(c.divided));
+    EXPECT_TRUE(everywhere(c.savedSame));
+    // (what the comparison saw: many patches, most taken over from the step before)
+    EXPECT_GT(c.patches, 20000u);
+    EXPECT_GT(c.reused, c.patches / 2);
+    if (ranks > 1) {
+      // the processes kept a part each, and entries did pass from one to another
+      EXPECT_TRUE(everywhere(c.mostKept < c.keptAlone));
+      EXPECT_GT(sumOver(c.received), 0u);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace volpar
