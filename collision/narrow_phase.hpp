@@ -158,6 +158,7 @@ class NarrowPhase {
   std::vector<std::uint64_t> held_, heldBy_, heldAnywhere_;
   bool keysInOrder_ = true;  // (with processes: whether the cacheable groups come in key order)
   std::size_t entriesReceived_ = 0;
+  Cache received_;  // (with processes: the entries handed over in the last run, every process's)
   /// Finds the groups whose patches each process can take over, divides the groups among the processes
   /// (groupStart_), and hands each process the entries of its groups that another keeps (match_).
   void divideGroups(const NarrowPhaseInput& in, const ContactSet& contacts);
@@ -166,6 +167,8 @@ class NarrowPhase {
   /// One cache entry as bytes (`tag`, the group, its pairs, order and patches), and back (appended to `to`).
   static void appendEntry(std::vector<std::byte>& bytes, std::uint32_t tag, const Cache& from, std::size_t entry);
   static std::uint32_t readEntry(const std::byte*& at, Cache& to);
+  /// Appends entry `entry` of `from` to `to`.
+  static void copyEntry(const Cache& from, std::size_t entry, Cache& to);
   /// Every process's entries as one process alone keeps them: in key order, each once.
   [[nodiscard]] Cache wholeCache() const;
   /// Every process's chunks, from each process's `count` chunks of chunks_, into gathered_ (their patches,

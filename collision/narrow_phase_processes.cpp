@@ -63,6 +63,19 @@ void NarrowPhase::appendEntry(std::vector<std::byte>& bytes, std::uint32_t tag, 
   appendRange(bytes, from.patches.data() + c.patchFirst, c.patchCount);
 }
 
+void NarrowPhase::copyEntry(const Cache& from, std::size_t entry, Cache& to) {
+  CachedGroup c = from.groups[entry];
+  const auto pairs = from.pairs.begin() + c.pairFirst;
+  const auto order = from.order.begin() + c.pairFirst;
+  const auto patches = from.patches.begin() + c.patchFirst;
+  c.pairFirst = static_cast<std::uint32_t>(to.pairs.size());
+  c.patchFirst = static_cast<std::uint32_t>(to.patches.size());
+  to.pairs.insert(to.pairs.end(), pairs, pairs + c.pairCount);
+  to.order.insert(to.order.end(), order, order + c.pairCount);
+  to.patches.insert(to.patches.end(), patches, patches + c.patchCount);
+  to.groups.push_back(c);
+}
+
 std::uint32_t NarrowPhase::readEntry(const std::byte*& at, Cache& to) {
   std::uint32_t tag = 0;
   CachedGroup c;
@@ -147,17 +160,11 @@ void NarrowPhase::moveEntries(const ContactSet& contacts, std::size_t words) {
   const std::size_t lo = groupStart_[me], hi = groupStart_[me + 1];
   const std::byte* at = all_.data();
   const std::byte* const end = all_.data() + all_.size();
+  received_.clear();
   while (at < end) {
-    std::uint32_t gi = 0;
-    CachedGroup c;
-    std::memcpy(&gi, at, sizeof gi);
-    if (gi < lo || gi >= hi) {  // (another process's)
-      std::memcpy(static_cast<void*>(&c), at + sizeof gi, sizeof c);
-      at += sizeof gi + sizeof c + c.pairCount * (sizeof(std::pair<ParticleId, ParticleId>) + sizeof(std::uint32_t)) +
-            c.patchCount * sizeof(CachedPatch);
-      continue;
-    }
-    readEntry(at, cache_);
+    const std::uint32_t gi = readEntry(at, received_);
+    if (gi < lo || gi >= hi) continue;  // (another process's)
+    copyEntry(received_, received_.groups.size() - 1, cache_);
     VOLPAR_ASSERT(keyOf(contacts.groups[gi]) == cache_.groups.back().key, "an entry for reuse sent for another group");
     match_[gi] = static_cast<std::uint32_t>(cache_.groups.size() - 1);
     ++entriesReceived_;
@@ -178,13 +185,8 @@ NarrowPhase::Cache NarrowPhase::wholeCache() const {
   std::stable_sort(byKey.begin(), byKey.end(),
                    [&](std::uint32_t x, std::uint32_t y) { return every.groups[x].key < every.groups[y].key; });
   Cache whole;
-  for (std::size_t k = 0; k < byKey.size(); ++k) {
-    if (k > 0 && every.groups[byKey[k]].key == every.groups[byKey[k - 1]].key) continue;
-    std::vector<std::byte> one;
-    appendEntry(one, 0, every, byKey[k]);
-    const std::byte* from = one.data();
-    readEntry(from, whole);
-  }
+  for (std::size_t k = 0; k < byKey.size(); ++k)
+    if (k == 0 || !(every.groups[byKey[k]].key == every.groups[byKey[k - 1]].key)) copyEntry(every, byKey[k], whole);
   return whole;
 }
 

@@ -16,6 +16,7 @@ namespace volpar {
 namespace {
 
 using test::everywhere;
+using test::sumOver;
 
 // 64 crates falling into a pen in a heap (the groups' runs move between the processes as pairs meet and
 // part), and a soft cube among them (groups that are never kept for reuse).
@@ -69,13 +70,6 @@ bool same(const StateArchive& x, const StateArchive& y) {
     if (a.name != b.name || a.type != b.type || a.width != b.width || a.bytes != b.bytes) return false;
   }
   return true;
-}
-
-/// The sum of every process's `mine`.
-std::size_t sumOver(std::size_t mine) {
-  unsigned long long value = mine, sum = 0;
-  MPI_Allreduce(&value, &sum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
-  return static_cast<std::size_t>(sum);
 }
 
 struct Compared {
