@@ -5,6 +5,9 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <utility>
+
+#include "volpar/engine/core/status.hpp"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -435,14 +438,16 @@ void ContactSolver::remember() {
 void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactPointInput> points, double dt,
                           ThreadPool* pool) {
   const std::size_t nb = bodies.size(), np = points.size();
-  depth_ = depthFor(nb, settings_.bodiesPerLeaf);
+  const bool planned = std::exchange(planned_, false);
+  VOLPAR_ASSERT(!planned || ab_.size() == np, "a solve of other points than its plan's");
+  if (!planned) depth_ = depthFor(nb, settings_.bodiesPerLeaf);
   const std::size_t leaves = std::size_t{1} << depth_;
   // (threads take whole nodes: at most one per leaf)
   const int workers = pool && np > 0 && pool->worthSharing(np, 1024)
                           ? static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(pool->workers()), leaves))
                           : 1;
   barrier_.reset(workers);
-  ab_.resize(np);
+  if (!planned) ab_.resize(np);
   // calls f(part) for the nodes of a level that `worker` of this process takes: of all the level's nodes
   // (forShare: work every process does) or of the process's own (forOwn: the iterations, which the
   // processes divide)
@@ -462,13 +467,13 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   const auto setUp = [&](int worker) {
     // the points' bodies, compact (each thread reads its share of the points once; the ordering then
     // works in the cache)
+    // (a plan: made already)
     const auto share = [&](int w) { return np * static_cast<std::size_t>(w) / static_cast<std::size_t>(workers); };
-    for (std::size_t i = share(worker); i < share(worker + 1); ++i) ab_[i] = {points[i].a, points[i].b};
+    if (!planned)
+      for (std::size_t i = share(worker); i < share(worker + 1); ++i) ab_[i] = {points[i].a, points[i].b};
     barrier_.wait();
     if (worker == 0) {
-      order(bodies);
-      if (ranks > 1) planHandovers();
-      divideSetUp_ = ranks > 1 && !heavyPairs(bodies);
+      if (!planned) planSolve(bodies);
       v_.resize(slots_);
       w_.resize(slots_);
       pv_.resize(slots_);
@@ -757,7 +762,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     // impulses of its rows, for every process to hold what one process alone would)
     if (ranks > 1) {
       if (worker == 0) {
-        if (divideSetUp_) shareLanes(points);
+        if (divideSetUp_) shareLanes();
         planEndHandovers();
         handOver(interior_, dv_, dw_, pv_, pw_);
         handOver(points_, impulses_);
@@ -795,6 +800,30 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   }
   std::swap(cacheKeys_, keys_);  // (keys_ is rewritten by the next step's preparation)
   std::swap(cache_, nextCache_);
+}
+
+void ContactSolver::planSolve(std::span<const SolverBody> bodies) {
+  const int ranks = processes_ ? processes_->size() : 1;
+  order(bodies);
+  if (ranks > 1) planHandovers();
+  divideSetUp_ = ranks > 1 && !heavyPairs(bodies);
+}
+
+void ContactSolver::plan(std::span<const SolverBody> bodies,
+                         std::span<const std::pair<std::uint32_t, std::uint32_t>> pointBodies) {
+  depth_ = depthFor(bodies.size(), settings_.bodiesPerLeaf);
+  ab_.assign(pointBodies.begin(), pointBodies.end());
+  planSolve(bodies);
+  planned_ = true;
+  // the points of this process's nodes' rows (a node's rows are scratch_[parts_[part]] on until its
+  // preparation spreads them into order_), or every point where every process prepares every node
+  pointsRead_.assign(ab_.size(), divideSetUp_ ? 0 : 1);
+  if (!divideSetUp_) return;
+  const auto me = static_cast<std::size_t>(processes_->rank());
+  for (std::size_t k = partsOf_.start[me]; k < partsOf_.start[me + 1]; ++k) {
+    const std::uint32_t part = partsOf_.index[k];
+    for (std::size_t row = parts_[part]; row < parts_[part + 1]; ++row) pointsRead_[scratch_[row]] = 1;
+  }
 }
 
 void ContactSolver::planHandovers() {
@@ -876,14 +905,21 @@ bool ContactSolver::heavyPairs(std::span<const SolverBody> bodies) const {
   return false;
 }
 
-void ContactSolver::shareLanes(std::span<const ContactPointInput> points) {
-  // each process's parts' lanes (their rows in colour order), in the order of partsOf_; then the others'
-  // parts' warm-starting keys, from their rows' points
+void ContactSolver::shareLanes() {
+  // each process's parts' lanes (their rows in colour order) and their rows' warm-starting keys, in the order
+  // of partsOf_ (the keys travel: a process need not hold the points of other processes' rows)
   const int ranks = processes_->size();
   const auto mine = static_cast<std::size_t>(processes_->rank());
   lanesMine_.clear();
-  for (std::size_t k = partsOf_.start[mine]; k < partsOf_.start[mine + 1]; ++k)
-    appendBytes(lanesMine_, batches_[partsOf_.index[k]].sorted);
+  for (std::size_t k = partsOf_.start[mine]; k < partsOf_.start[mine + 1]; ++k) {
+    const std::uint32_t part = partsOf_.index[k];
+    const std::vector<std::uint32_t>& sorted = batches_[part].sorted;
+    appendBytes(lanesMine_, sorted);
+    keysScratch_.clear();
+    for (std::size_t j = 0; j < sorted.size(); ++j)
+      if (sorted[j] != kNoRow) keysScratch_.push_back(keys_[posBase_[part] + j]);
+    appendBytes(lanesMine_, keysScratch_);
+  }
   processes_->gather(lanesMine_, lanesAll_);
   const std::byte* at = lanesAll_.data();
   for (std::size_t r = 0; r < static_cast<std::size_t>(ranks); ++r) {
@@ -891,9 +927,11 @@ void ContactSolver::shareLanes(std::span<const ContactPointInput> points) {
       const std::uint32_t part = partsOf_.index[k];
       std::vector<std::uint32_t>& sorted = r == mine ? lanesScratch_ : batches_[part].sorted;
       readBytes(at, sorted);
+      readBytes(at, keysScratch_);
       if (r == mine) continue;
+      std::size_t next = 0;
       for (std::size_t j = 0; j < sorted.size(); ++j)
-        if (sorted[j] != kNoRow) keys_[posBase_[part] + j] = points[order_[sorted[j]]].key;
+        if (sorted[j] != kNoRow) keys_[posBase_[part] + j] = keysScratch_[next++];
     }
   }
 }

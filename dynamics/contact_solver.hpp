@@ -104,6 +104,15 @@ class ContactSolver {
   void solve(std::span<SolverBody> bodies, std::span<const ContactPointInput> points, double dt,
              ThreadPool* pool = nullptr);
 
+  /// With processes, optionally before solve(): plans the solve (the tree, the rows' order and the division
+  /// among the processes) from the bodies and each point's two bodies alone (`pointBodies`: per point, its
+  /// solver bodies a and b, as the points will name them). Then pointsRead() says which points this process's
+  /// share of the next solve() reads; of the others, solve() reads only a and b, which must be as planned.
+  void plan(std::span<const SolverBody> bodies, std::span<const std::pair<std::uint32_t, std::uint32_t>> pointBodies);
+  /// Per point of the last plan(): 1 where this process's share of the solve reads it (all of them unless the
+  /// processes divide the preparation: see solve()), else 0.
+  [[nodiscard]] std::span<const std::uint8_t> pointsRead() const { return pointsRead_; }
+
   /// Shares the iterations of every solve with other processes (null: none). Every process then calls solve()
   /// with the same bodies and points and does the set-up alone; the nodes of each level of the solving
   /// tree are divided among the processes as among threads, and after each level every process hands what
@@ -267,10 +276,15 @@ class ContactSolver {
   }
   /// With the set-up divided: every process's parts' lanes (the rows in colour order) and keys to every
   /// process, for the warm start of the next solve.
-  void shareLanes(std::span<const ContactPointInput> points);
+  void shareLanes();
+  /// The tree, the rows' order and, with processes, their division, from bodies and ab_ (the start of a solve).
+  void planSolve(std::span<const SolverBody> bodies);
   bool divideSetUp_ = false;  // whether this solve's processes each prepare their own nodes alone
+  bool planned_ = false;      // plan() made the next solve's plan
+  std::vector<std::uint8_t> pointsRead_;
   std::vector<std::byte> lanesMine_, lanesAll_;
   std::vector<std::uint32_t> lanesScratch_;
+  std::vector<std::uint64_t> keysScratch_;
   /// Hands every process the values the others hold at their entries of `h`, of each array in turn.
   template <class... T>
   void handOver(const Handover& h, std::vector<T>&... arrays);

@@ -214,6 +214,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
 }
 
 void World::setProcesses(ProcessGroup* processes) {
+  processes_ = processes;
   contactFinder_.setProcesses(processes);
   narrowPhase_.setProcesses(processes);
   solver_.setProcesses(processes);
@@ -545,7 +546,17 @@ void World::buildContactPoints() {
   if (pool_ && pool_->worthSharing(np, 512)) pool_->runChunks(np, select);
   else select(0, 0, np);
   // (2) the points' places, and the solver bodies in the order their first points name them (the points
-  // of a patch of two rigid bodies all name the same two)
+  // of a patch of two rigid bodies all name the same two); with processes, each point's solver bodies
+  // (a rigid body's points share its slot; a deformable body's particles have a slot each)
+  const auto slotOf = [&](BodyId b, BodyKind k, ParticleId p) {
+    switch (k) {
+      case BodyKind::Rigid: return bodySolverIndex_[b.index()];
+      case BodyKind::Deformable: return *solverSlot(p);
+      default: return ContactPointInput::kFixed;
+    }
+  };
+  const bool planned = processes_ && processes_->size() > 1;
+  pointBodies_.clear();
   pointFirst_[0] = 0;
   for (std::size_t j = 0; j < np; ++j) {
     const std::uint8_t mode = pointMode_[j];
@@ -560,9 +571,24 @@ void World::buildContactPoints() {
       solverIndex(c.a);
       if (c.b.valid()) solverIndex(c.b);
     }
+    if (!planned) continue;
+    // (a reduced patch's points are four of its kept contacts, between the same two rigid bodies)
+    const BodyKind kindA = kind(patch.a), kindB = patch.b.valid() ? kind(patch.b) : BodyKind::Static;
+    for (std::uint32_t k = 0; k < pointFirst_[j + 1] - pointFirst_[j]; ++k) {
+      const ParticleContact& c = cs.contacts[kept[k]];
+      pointBodies_.emplace_back(slotOf(patch.a, kindA, c.a),
+                                c.b.valid() ? slotOf(patch.b, kindB, c.b) : ContactPointInput::kFixed);
+    }
   }
   contactPoints_.resize(pointFirst_[np]);
   pointParticles_.resize(pointFirst_[np]);
+  // with processes, the solver plans its division first: the points of other processes' nodes are not read
+  // (their particles are named all the same: the loads on breakable bodies take every point's impulse)
+  std::span<const std::uint8_t> read;
+  if (planned && !contactPoints_.empty()) {
+    solver_.plan(solverBodies_, pointBodies_);
+    read = solver_.pointsRead();
+  }
   touchingParticle_.resize(pool_ ? static_cast<std::size_t>(pool_->workers()) : 1);
   for (std::vector<std::uint8_t>& seen : touchingParticle_) seen.resize(particles_.size(), 0);
   // (3) the points themselves: patches shared among the workers, each point written at its patch's place
@@ -570,13 +596,6 @@ void World::buildContactPoints() {
     std::vector<std::uint8_t>& seen = touchingParticle_[static_cast<std::size_t>(worker)];
     // (a rigid body's points share its slot and centre; a deformable body's particles have a slot each
     // and no arm)
-    const auto slotOf = [&](BodyId b, const Side& side, ParticleId p) {
-      switch (side.kind) {
-        case BodyKind::Rigid: return bodySolverIndex_[b.index()];
-        case BodyKind::Deformable: return *solverSlot(p);
-        default: return ContactPointInput::kFixed;
-      }
-    };
     const auto arm = [&](const Side& side, const Vec3& point) -> Vec3 {
       return side.kind == BodyKind::Rigid ? Vec3(point - side.centre) : Vec3::Zero();
     };
@@ -586,6 +605,10 @@ void World::buildContactPoints() {
       const std::uint32_t* kept = keptContacts_.data() + patch.first;
       const std::uint32_t count = keptCount_[j];
       std::uint32_t out = pointFirst_[j];
+      if (!read.empty() && std::none_of(read.begin() + out, read.begin() + pointFirst_[j + 1], [](std::uint8_t r) { return r != 0; })) {
+        for (std::uint32_t k = 0; out < pointFirst_[j + 1]; ++k) pointParticles_[out++] = {cs.contacts[kept[k]].a, cs.contacts[kept[k]].b};
+        continue;
+      }
       // (the contacts of a patch join the same two bodies, or a body and a plane)
       const ParticleContact& first = cs.contacts[kept[0]];
       const auto [ma, mb] = contactMaterials(first.a, first.b, first.plane);
@@ -600,8 +623,8 @@ void World::buildContactPoints() {
       const auto addPoint = [&](const ParticleContact& c, const Vec3& normal, double depth, const Vec3& frictionOffset) {
         ContactPointInput& in = contactPoints_[out];
         pointParticles_[out++] = {c.a, c.b};
-        in.a = slotOf(patch.a, sideA, c.a);
-        in.b = c.b.valid() ? slotOf(patch.b, sideB, c.b) : ContactPointInput::kFixed;
+        in.a = slotOf(patch.a, sideA.kind, c.a);
+        in.b = c.b.valid() ? slotOf(patch.b, sideB.kind, c.b) : ContactPointInput::kFixed;
         const Vec3& at = deformableA ? particles_.position[c.a.index()]
                          : deformableB && c.b.valid() ? particles_.position[c.b.index()]
                                                       : c.point;
@@ -706,6 +729,11 @@ void World::solveContacts() {
   particleSolverIndex_.resize(particles_.size(), ContactPointInput::kFixed);
   buildContactPoints();
   stats_.contactPoints = contactPoints_.size();
+  stats_.contactPointsRead = contactPoints_.size();
+  if (processes_ && processes_->size() > 1 && !contactPoints_.empty()) {
+    const std::span<const std::uint8_t> read = solver_.pointsRead();
+    stats_.contactPointsRead = static_cast<std::size_t>(std::count(read.begin(), read.end(), std::uint8_t{1}));
+  }
   // loads on the particles of breakable bodies: gravity, and below the contact impulses over the step
   if (!breakableRigid_.empty()) {
     loads_.resize(particles_.size());

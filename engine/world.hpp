@@ -270,6 +270,10 @@ class World {
   /// per worker, per particle: whether it touches in the patch being made into points (0 between patches)
   std::vector<std::vector<std::uint8_t>> touchingParticle_;
   std::vector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles
+  /// with processes: per contact point, its solver bodies (what the solver plans its division from, before
+  /// the points of other processes' nodes are left unmade)
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pointBodies_;
+  ProcessGroup* processes_ = nullptr;
   struct alignas(64) ContactTally {  // (one per worker, each on a cache line of its own)
     std::size_t touching = 0;
     double deepest = 0.0;

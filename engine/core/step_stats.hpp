@@ -51,6 +51,10 @@ struct StepStats {
   std::size_t patchesReused = 0;    ///< patches taken over from an earlier step (temporal coherence)
   std::size_t normalsRecomputed = 0;   ///< cached surface normals recomputed this step
   std::size_t contactPoints = 0;       ///< solver contact points (patches reduced to at most 4 points)
+  /// Of them, those this process made in full and its share of the solve read: with processes, the points of
+  /// its own nodes of the solver's tree (the others' are left unmade), unless every process prepares every
+  /// node (docs/distributed.md); without, all of them. Not saved: it depends on the number of processes.
+  std::size_t contactPointsRead = 0;
   std::size_t warmStarted = 0;         ///< of them, warm started from the previous step
   std::size_t heavyIslands = 0;        ///< islands whose normal impulses were solved exactly (mass ratios)
   /// Solver contact points per level of the solver's tree, the root first (levels past its depth: 0).

@@ -18,35 +18,6 @@ namespace {
 using test::everywhere;
 using test::sumOver;
 
-// 64 crates falling into a pen in a heap (the groups' runs move between the processes as pairs meet and
-// part), and a soft cube among them (groups that are never kept for reuse).
-constexpr const char* kScene = R"(name: heap
-dt: 0.004166667
-duration: 2.0
-gravity: [0, 0, -9.81]
-solver: {iterations: 10, substeps: 4}
-materials:
-  m: {density: 1000, restitution: 0.1, friction: 0.5}
-planes:
-  - {normal: [0, 0, 1], offset: 0, material: m}
-  - {normal: [1, 0, 0], offset: -1.0, material: m}
-  - {normal: [-1, 0, 0], offset: -1.0, material: m}
-  - {normal: [0, 1, 0], offset: -1.0, material: m}
-  - {normal: [0, -1, 0], offset: -1.0, material: m}
-bodies:
-  - name: crate
-    shape: {box: {size: [0.3, 0.3, 0.3]}}
-    fill: {lattice: cubic, radius: 0.05, spacing: 0.1}
-    material: m
-    position: [-0.675, -0.675, 0.3]
-    repeat:
-      count: [4, 4, 4]
-      spacing: [0.45, 0.45, 0.45]
-      rotation_step: [{axis: [0, 0, 1], angle: 0.37}, {axis: [1, 0, 0], angle: 0.11}]
-  - {name: jelly, kind: deformable, shape: {box: {size: [0.3, 0.3, 0.3]}}, fill: {radius: 0.05},
-     connectors: {springs: {stiffness: 20000, damping: 5}}, material: m, position: [0.0, 0.0, 2.2]}
-)";
-
 bool same(const PatchSet& x, const PatchSet& y) {
   if (x.patches.size() != y.patches.size() || x.contacts != y.contacts || x.depthAlongNormal != y.depthAlongNormal ||
       x.patchOfContact != y.patchOfContact || x.flipped != y.flipped)
@@ -81,7 +52,7 @@ struct Compared {
 /// processes through `exchange` (and with one of its own), comparing them with the world's.
 Compared compare(ProcessGroup& exchange, int threads, int steps) {
   Compared result;
-  World w = test::worldFromString(kScene, "heap.yaml");
+  World w = test::worldFromString(test::kHeapScene, "heap.yaml");
   NarrowPhase shared, alone;
   shared.setSettings(w.settings().planes);
   alone.setSettings(w.settings().planes);
