@@ -466,8 +466,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   };
   const auto setUp = [&](int worker) {
     // the points' bodies, compact (each thread reads its share of the points once; the ordering then
-    // works in the cache)
-    // (a plan: made already)
+    // works in the cache), and the plan, unless plan() made them
     const auto share = [&](int w) { return np * static_cast<std::size_t>(w) / static_cast<std::size_t>(workers); };
     if (!planned)
       for (std::size_t i = share(worker); i < share(worker + 1); ++i) ab_[i] = {points[i].a, points[i].b};

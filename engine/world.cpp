@@ -589,6 +589,8 @@ void World::buildContactPoints() {
     solver_.plan(solverBodies_, pointBodies_);
     read = solver_.pointsRead();
   }
+  stats_.contactPointsRead = read.empty() ? contactPoints_.size()
+                                          : static_cast<std::size_t>(std::count(read.begin(), read.end(), std::uint8_t{1}));
   touchingParticle_.resize(pool_ ? static_cast<std::size_t>(pool_->workers()) : 1);
   for (std::vector<std::uint8_t>& seen : touchingParticle_) seen.resize(particles_.size(), 0);
   // (3) the points themselves: patches shared among the workers, each point written at its patch's place
@@ -729,11 +731,6 @@ void World::solveContacts() {
   particleSolverIndex_.resize(particles_.size(), ContactPointInput::kFixed);
   buildContactPoints();
   stats_.contactPoints = contactPoints_.size();
-  stats_.contactPointsRead = contactPoints_.size();
-  if (processes_ && processes_->size() > 1 && !contactPoints_.empty()) {
-    const std::span<const std::uint8_t> read = solver_.pointsRead();
-    stats_.contactPointsRead = static_cast<std::size_t>(std::count(read.begin(), read.end(), std::uint8_t{1}));
-  }
   // loads on the particles of breakable bodies: gravity, and below the contact impulses over the step
   if (!breakableRigid_.empty()) {
     loads_.resize(particles_.size());

@@ -1,7 +1,7 @@
 // A world stepped by MPI processes (run under mpirun with 1, 2 and 3 processes) against the same world stepped
 // by one process alone: the bodies and particles equal bit for bit after every step, with one or two threads
 // each. Each process makes in full only the contact points its share of the solver reads (those of its own
-// nodes of the solver's tree); every point is made by some process.
+// nodes of the solver's tree), and the processes' counts of points made add up to at least all of them.
 
 #include <gtest/gtest.h>
 #include <mpi.h>
@@ -65,7 +65,7 @@ TEST(WorldRanks, EachProcessMakesTheContactPointsItSolves) {
     if (ranks == 1) {
       EXPECT_EQ(s.read, s.points);
     } else {
-      // every point read by some process, each process reading a part of them in most steps
+      // each process made a part of the points, in most steps, and together at least as many as there were
       EXPECT_TRUE(everywhere(s.read < s.points));
       EXPECT_GE(sumOver(s.read), s.points);
       EXPECT_TRUE(everywhere(s.dividedSteps > 180));
