@@ -480,6 +480,18 @@ def main(argv):
     return 0
 
 
+def interrupted(e):
+    """Whether a Ctrl-C lies behind `e`: Python wraps an interrupt that arrives in some places (a class's
+    __set_name__ while a module is imported, such as matplotlib's) in another exception."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
+
+
 def entry():
     signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
@@ -493,6 +505,9 @@ def entry():
     except BrokenPipeError:
         return 1
     except Exception as e:  # whatever the checks above missed: still one line, no traceback
+        if interrupted(e):
+            sys.stderr.write("volpar_plot: interrupted\n")
+            return 130
         where = sys.argv[1] if len(sys.argv) > 1 else "volpar_plot"
         sys.stderr.write("volpar_plot: error: %s: unexpected %s: %s\n" % (where, type(e).__name__, e))
         return 1
