@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <utility>
 
 namespace volpar {
 
@@ -970,8 +971,8 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
   return out;
 }
 
-bool PlaneSolver::lookAhead(const NarrowPhaseInput& in, bool single, Vec3& normal, PlaneCase& predicted,
-                            NarrowPhaseStats& stats) {
+bool PlaneSolver::lookAhead(const NarrowPhaseInput& in, bool single, double sink, Vec3& normal,
+                            PlaneCase& predicted, NarrowPhaseStats& stats) {
   const ParticleStore& p = *in.particles;
   const BodyStore& bodies = *in.bodies;
   // each local particle's velocity: its rigid body's motion at it, a deformable particle's own
@@ -997,20 +998,39 @@ bool PlaneSolver::lookAhead(const NarrowPhaseInput& in, bool single, Vec3& norma
   events_.clear();
   if (!(fastest > 1e-18)) return false;
   ++stats.lookAheads;
+  // the first time two centres, d + t v apart, come within `reach` of each other: |d + t v| = reach (infinity
+  // when they never do; 0 when they already are)
+  const auto closesTo = [](const Vec3& d, const Vec3& v, double reach) {
+    constexpr double kNever = std::numeric_limits<double>::infinity();
+    if (!(reach > 0.0)) return kNever;
+    const double c = d.squaredNorm() - reach * reach;
+    if (!(c > 0.0)) return 0.0;
+    const double a = v.squaredNorm(), bb = d.dot(v);
+    if (!(a > 1e-18) || !(bb < 0.0)) return kNever;
+    const double disc = bb * bb - a * c;
+    if (disc < 0.0) return kNever;
+    return (-bb - std::sqrt(disc)) / a;
+  };
+  const auto between = [&](std::uint32_t i, std::uint32_t j) {
+    return std::pair<Vec3, Vec3>(b_.local[j].x - a_.local[i].x, velocityB_[j] - velocityA_[i]);
+  };
+  // The motion is followed in straight lines, as if nothing pushed back. That holds only until a pair of
+  // spheres in the configuration has sunk `sink` deeper into each other than it is now (a touching pair,
+  // or one of the pairs met on the way, from touching): from there on its contact turns the motion, and a
+  // configuration further on is not the one the pair comes to.
+  double trusted = 8.0 * in.dt;  // the horizon
+  for (std::uint32_t i = 0; i < a_.particles.size(); ++i)
+    for (std::uint32_t j = 0; j < b_.particles.size(); ++j) {
+      const auto [d, v] = between(i, j);
+      const double rs = a_.local[i].r + b_.local[j].r;
+      trusted = std::min(trusted, closesTo(d, v, rs - std::max(rs - d.norm(), 0.0) - sink));
+    }
   // the time each pair of local spheres not yet touching meets, within the horizon: |d + t v| = r_i + r_j
-  const double horizon = 8.0 * in.dt;
   for (std::uint32_t i = 0; i < a_.local.size(); ++i)
     for (std::uint32_t j = 0; j < b_.local.size(); ++j) {
-      const Vec3 d = b_.local[j].x - a_.local[i].x;
-      const Vec3 v = velocityB_[j] - velocityA_[i];
-      const double rs = a_.local[i].r + b_.local[j].r;
-      const double c = d.squaredNorm() - rs * rs;
-      const double a = v.squaredNorm(), bb = d.dot(v);
-      if (!(c > 0.0) || !(a > 1e-18) || !(bb < 0.0)) continue;
-      const double disc = bb * bb - a * c;
-      if (disc < 0.0) continue;
-      const double t = (-bb - std::sqrt(disc)) / a;
-      if (t > 0.0 && t <= horizon) events_.push_back({t, i, j});
+      const auto [d, v] = between(i, j);
+      const double t = closesTo(d, v, a_.local[i].r + b_.local[j].r);
+      if (t > 0.0 && t <= trusted) events_.push_back({t, i, j});
     }
   if (events_.empty()) return false;
   std::sort(events_.begin(), events_.end(), [](const Event& x, const Event& y) {
@@ -1023,6 +1043,11 @@ bool PlaneSolver::lookAhead(const NarrowPhaseInput& in, bool single, Vec3& norma
   };
   for (std::size_t e = 0; e < events_.size(); ++e) {
     const double t = events_[e].time;
+    if (t > trusted) return false;
+    {
+      const auto [d, v] = between(events_[e].i, events_[e].j);
+      trusted = std::min(trusted, closesTo(d, v, a_.local[events_[e].i].r + b_.local[events_[e].j].r - sink));
+    }
     if (e + 1 < events_.size() && events_[e + 1].time == t) continue;  // take simultaneous contacts together
     aheadA_.particles.clear();
     aheadB_.particles.clear();
@@ -1325,7 +1350,7 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
     if (valid && ((single && plane.open) || patch.planeCase == PlaneCase::EdgeEdge23)) {
       Vec3 ahead;
       PlaneCase predicted;
-      const bool found = lookAhead(in, single, ahead, predicted, stats);
+      const bool found = lookAhead(in, single, tol, ahead, predicted, stats);
       if (found && (!single || plane.open)) {
         if (ahead.dot(d0) < 0.0) ahead = -ahead;
         const Evaluation ea = evaluate(ahead);

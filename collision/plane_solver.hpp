@@ -149,8 +149,10 @@ class PlaneSolver {
   bool roundedCore(const NarrowPhaseInput& in, const Side& side, const Vec3& at, const Vec3& towards,
                    std::vector<Vec3>& out);
   /// Follows the pair's motion to its next contacts (step 6); when that configuration has a plane, its
-  /// normal, the case and true. `single`: a patch of one contact (else: parallel edges).
-  bool lookAhead(const NarrowPhaseInput& in, bool single, Vec3& normal, PlaneCase& predicted, NarrowPhaseStats& stats);
+  /// normal, the case and true. `single`: a patch of one contact (else: parallel edges). The motion is
+  /// followed only while no pair of local spheres sinks more than `sink` [m] into each other.
+  bool lookAhead(const NarrowPhaseInput& in, bool single, double sink, Vec3& normal, PlaneCase& predicted,
+                 NarrowPhaseStats& stats);
   void describe(Side& side) const;
   [[nodiscard]] static PlaneCase classify(const NarrowPhaseInput& in, const Side& a, const Side& b);
   void paperCandidates(const NarrowPhaseInput& in, const Vec3& contactDifference, PlaneCase c);
