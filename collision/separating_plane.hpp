@@ -79,8 +79,8 @@ struct PlaneSettings {
   /// relative pose of its bodies has turned by less than reuseAngle [rad] and moved by less than
   /// reuseShift x (r_a + r_b) since they were computed (collision/narrow_phase.hpp).
   bool reuse = true;
-  double reuseAngle = 1e-2;
-  double reuseShift = 0.05;
+  double reuseAngle = 2e-2;
+  double reuseShift = 0.10;
 };
 
 }  // namespace volpar

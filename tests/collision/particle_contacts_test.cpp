@@ -374,7 +374,7 @@ TEST(TemporalCoherence, ReusedPlanesSeparateAsWellAsFreshOnes) {
     for (std::size_t i = 0; i < patches.patches.size(); ++i) {
       const ContactPatch &x = got.patches[i], &y = patches.patches[i];
       ++compared;
-      if (x.normal.dot(y.normal) > std::cos(0.02)) ++close;
+      if (x.normal.dot(y.normal) > std::cos(2.0 * settings.reuseAngle)) ++close;
       if (y.validated && !x.validated) ++lostValidity;
       // what the solver sees: the deepest overlap along the normal, where the fresh plane has one
       if (y.depth > 0.0) {
