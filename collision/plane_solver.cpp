@@ -1022,8 +1022,7 @@ bool PlaneSolver::lookAhead(const NarrowPhaseInput& in, bool single, double sink
   for (std::uint32_t i = 0; i < a_.particles.size(); ++i)
     for (std::uint32_t j = 0; j < b_.particles.size(); ++j) {
       const auto [d, v] = between(i, j);
-      const double rs = a_.local[i].r + b_.local[j].r;
-      trusted = std::min(trusted, closesTo(d, v, rs - std::max(rs - d.norm(), 0.0) - sink));
+      trusted = std::min(trusted, closesTo(d, v, std::min(d.norm(), a_.local[i].r + b_.local[j].r) - sink));
     }
   // the time each pair of local spheres not yet touching meets, within the horizon: |d + t v| = r_i + r_j
   for (std::uint32_t i = 0; i < a_.local.size(); ++i)
