@@ -17,6 +17,8 @@
 
 namespace volpar {
 
+class PolytopeCores;
+
 struct ContactPatch {
   BodyId a;                       ///< as in its ContactGroup
   BodyId b;
@@ -108,6 +110,9 @@ struct NarrowPhaseInput {
   const ContactFinder* finder = nullptr;  ///< connector adjacency
   std::span<const Plane> planes;
   double dt = 0.0;                        ///< [s], scales the look-ahead
+  /// The bodies' whole polytope cores, where they have one (null: none; the narrow phase then rebuilds
+  /// every core from the local particles)
+  const PolytopeCores* cores = nullptr;
 };
 
 }  // namespace volpar

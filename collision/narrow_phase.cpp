@@ -1,5 +1,7 @@
 #include "volpar/collision/narrow_phase.hpp"
 
+#include "volpar/collision/polytope_cores.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -38,6 +40,7 @@ const char* normalSourceName(NormalSource s) {
     case NormalSource::Separation: return "separation";
     case NormalSource::Surface: return "surface";
     case NormalSource::ContactLines: return "contact_lines";
+    case NormalSource::Cores: return "cores";
   }
   return "unknown";
 }
@@ -330,6 +333,21 @@ void NarrowPhase::shareContacts(const ContactSet& contacts, std::vector<T>& valu
 
 void NarrowPhase::makePatches(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, Worker& w,
                               PatchSet& out) const {
+  if (settings_.polytopeCores && in.cores && !g.plane.valid() && g.a != g.b && !in.cores->vertices(g.a).empty() && !in.cores->vertices(g.b).empty()) {
+    // two whole polytope cores: one patch, the plane between them
+    w.order.resize(g.count);
+    std::iota(w.order.begin(), w.order.end(), g.first);
+    ContactPatch patch;
+    patch.a = g.a;
+    patch.b = g.b;
+    if (w.solver.solveCores(in, set, w.order, patch, out.depthAlongNormal, w.o->stats)) {
+      patch.first = static_cast<std::uint32_t>(w.o->contacts.size());
+      patch.count = g.count;
+      w.o->contacts.insert(w.o->contacts.end(), w.order.begin(), w.order.end());
+      w.o->patches.push_back(patch);
+      return;
+    }
+  }
   w.builder.build(in, set, g, out.flipped, w.order, w.sizes);
   // each patch's plane; a patch that validates none is split in two and each part solved again, down to
   // single contacts, which are then resolved along their own centre lines (counted)

@@ -1,5 +1,7 @@
 #include "volpar/collision/plane_solver.hpp"
 
+#include "volpar/collision/polytope_cores.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -1405,6 +1407,86 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
     depthAlongNormal[ci] = d;
     patch.depth = std::max(patch.depth, d);
   }
+}
+
+bool PlaneSolver::solveCores(const NarrowPhaseInput& in, const ContactSet& set, std::span<const std::uint32_t> idx,
+                             ContactPatch& patch, std::span<double> depthAlongNormal, NarrowPhaseStats& stats) {
+  const ParticleStore& p = *in.particles;
+  // the two cores in the world
+  const auto place = [&](BodyId body, std::vector<Vec3>& out) {
+    const std::span<const Vec3> v = in.cores->vertices(body);
+    const BodyState& s = in.bodies->state[body.index()];
+    const Mat3 r = s.orientation.toRotationMatrix();
+    out.resize(v.size());
+    for (std::size_t i = 0; i < v.size(); ++i) out[i] = s.position + r * v[i];
+  };
+  place(patch.a, coreA_);
+  place(patch.b, coreB_);
+  if (coreA_.empty() || coreB_.empty()) return false;
+  const HullDistance h = hullDistance(coreA_, coreB_);
+  if (!h.separated) return false;
+  // a corner on a corner leaves the normal open
+  const auto features = [&](const std::array<std::uint32_t, 4>& index) {
+    std::array<std::uint32_t, 4> seen{};
+    int n = 0;
+    for (int k = 0; k < h.count; ++k) {
+      const std::uint32_t v = index[static_cast<std::size_t>(k)];
+      if (!(h.weight[static_cast<std::size_t>(k)] > 0.0) || std::find(seen.begin(), seen.begin() + n, v) != seen.begin() + n) continue;
+      seen[static_cast<std::size_t>(n++)] = v;
+    }
+    return n;
+  };
+  if (features(h.indexA) <= 1 && features(h.indexB) <= 1) return false;
+
+  // the paper's case, from the sides' own particles (parallel edges are left to solve(), which looks ahead)
+  std::uint32_t deepest = idx[0];
+  a_.particles.clear();
+  b_.particles.clear();
+  for (const std::uint32_t ci : idx) {
+    const ParticleContact& c = set.contacts[ci];
+    if (c.depth > set.contacts[deepest].depth) deepest = ci;
+    a_.particles.push_back(c.a);
+    b_.particles.push_back(c.b);
+  }
+  for (Side* side : {&a_, &b_}) {
+    std::sort(side->particles.begin(), side->particles.end());
+    side->particles.erase(std::unique(side->particles.begin(), side->particles.end()), side->particles.end());
+    side->points.clear();
+    side->meanRadius = 0.0;
+    for (const ParticleId q : side->particles) {
+      side->points.push_back(p.position[q.index()]);
+      side->meanRadius += p.radius[q.index()];
+    }
+    side->meanRadius /= static_cast<double>(side->particles.size());
+    describe(*side);
+  }
+  const PlaneCase c = classify(in, a_, b_);
+  if (c == PlaneCase::EdgeEdge23) return false;
+
+  ++stats.patches;
+  ++stats.candidates;
+  ++stats.byCase[static_cast<std::size_t>(c)];
+  patch.planeCase = c;
+  patch.normal = h.direction;
+  patch.source = NormalSource::Cores;
+  patch.validated = true;
+  patch.lookAhead = false;
+  patch.curvedSide = -1;
+  patch.point = set.contacts[deepest].point;
+  // the contacts' depths along the normal; the margin of the patch's own spheres
+  const Vec3& n = patch.normal;
+  double topA = -std::numeric_limits<double>::infinity(), bottomB = std::numeric_limits<double>::infinity();
+  for (const ParticleId q : a_.particles) topA = std::max(topA, n.dot(p.position[q.index()]) + p.radius[q.index()]);
+  for (const ParticleId q : b_.particles) bottomB = std::min(bottomB, n.dot(p.position[q.index()]) - p.radius[q.index()]);
+  patch.margin = bottomB - topA;
+  patch.depth = 0.0;
+  for (const std::uint32_t ci : idx) {
+    const ParticleContact& ct = set.contacts[ci];
+    const double d = p.radius[ct.a.index()] + p.radius[ct.b.index()] - n.dot(p.position[ct.b.index()] - p.position[ct.a.index()]);
+    depthAlongNormal[ci] = d;
+    patch.depth = std::max(patch.depth, d);
+  }
+  return true;
 }
 
 }  // namespace volpar

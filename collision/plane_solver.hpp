@@ -47,6 +47,12 @@ class PlaneSolver {
   void solve(const NarrowPhaseInput& in, const ContactSet& set, std::span<const std::uint32_t> idx,
              std::span<const std::uint8_t> flipped, ContactPatch& patch, std::span<double> depthAlongNormal,
              NarrowPhaseStats& stats);
+  /// Between two bodies with whole polytope cores (in.cores, polytope_cores.hpp): the plane of contacts `idx`
+  /// (all of a body pair's) as one patch, whose normal is the direction between the closest points of the two
+  /// cores. False, with nothing written, where the cores overlap or leave the normal open (a corner on a
+  /// corner, or parallel edges: solve() looks ahead there), and the caller makes patches and solves each.
+  bool solveCores(const NarrowPhaseInput& in, const ContactSet& set, std::span<const std::uint32_t> idx,
+                  ContactPatch& patch, std::span<double> depthAlongNormal, NarrowPhaseStats& stats);
 
  private:
   /// A particle of a side's neighbourhood, gathered once per patch.

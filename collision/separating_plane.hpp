@@ -64,8 +64,9 @@ enum class NormalSource : std::uint8_t {
   Surface,         ///< the smooth surface normals of the sides, interpolated at the closest points
   ContactLines,    ///< each contact resolved along its own centre line: no plane validated, or a deformable body
                    ///< touching itself (layers that slide over each other, both sides' normals estimates)
+  Cores,           ///< the closest points of the two bodies' whole polytope cores (polytope_cores.hpp)
 };
-inline constexpr std::size_t kNormalSourceCount = 13;
+inline constexpr std::size_t kNormalSourceCount = 14;
 
 /// "face_a", ... (the names used in the trajectory).
 [[nodiscard]] const char* normalSourceName(NormalSource s);
@@ -81,6 +82,9 @@ struct PlaneSettings {
   bool reuse = true;
   double reuseAngle = 2e-2;
   double reuseShift = 0.10;
+  /// Between two bodies with whole polytope cores (polytope_cores.hpp), take the plane between the cores for
+  /// all their contacts instead of rebuilding each patch's local cores (false: always rebuild, for comparison)
+  bool polytopeCores = true;
 };
 
 }  // namespace volpar

@@ -42,6 +42,7 @@ NarrowPhaseInput World::narrowPhaseInput() const {
   in.finder = &contactFinder_;
   in.planes = planes_;
   in.dt = settings_.dt;
+  in.cores = &cores_;
   return in;
 }
 
@@ -209,6 +210,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   broadphase_.setMargin(settings_.broadphaseMargin > 0.0 ? settings_.broadphaseMargin : maxRadius_);
   broadphase_.addBody(id, bodyBoxes_[id.index()], def.kind == BodyKind::Static);
   contactFinder_.addBody(id, particles_, bodies_);
+  cores_.update(id, particles_, bodies_, normals_);
   contactsStale_ = true;
   return id;
 }

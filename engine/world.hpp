@@ -22,6 +22,7 @@
 #include "volpar/collision/narrow_phase.hpp"
 #include "volpar/collision/normal_cache.hpp"
 #include "volpar/collision/particle_contacts.hpp"
+#include "volpar/collision/polytope_cores.hpp"
 #include "volpar/dynamics/bond_loads.hpp"
 #include "volpar/dynamics/breakage.hpp"
 #include "volpar/dynamics/deformable_integrator.hpp"
@@ -134,6 +135,8 @@ class World {
   [[nodiscard]] const BodyStore& bodies() const { return bodies_; }
   [[nodiscard]] const ConnectorStore& connectors() const { return connectors_; }
   [[nodiscard]] const NormalCache& normals() const { return normals_; }
+  /// The whole polytope cores of the rigid and static bodies that have one (polytope_cores.hpp).
+  [[nodiscard]] const PolytopeCores& polytopeCores() const { return cores_; }
   [[nodiscard]] const std::vector<Material>& materials() const { return materials_; }
   [[nodiscard]] const std::vector<Plane>& planes() const { return planes_; }
   [[nodiscard]] const StepStats& stats() const { return stats_; }
@@ -243,6 +246,7 @@ class World {
   BodyStore bodies_;
   NormalCache normals_;
   NormalUpdater normalUpdater_;
+  PolytopeCores cores_;                           // the rigid and static bodies' whole polytope cores
   std::vector<std::uint8_t> opened_;              // [P] 1 where a particle lost a connector (a crack face)
   std::vector<Vec3> connectorDirection_;          // [C] deformable connectors: direction in the body frame
                                                   // when their particles' normals were last estimated

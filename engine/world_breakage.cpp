@@ -318,6 +318,7 @@ BodyId World::addRigidBody(const BodyState& state, BodyInfo info, std::vector<Co
   updateRigidParticles(id);
   broadphase_.addBody(id, bodyBoxes_[id.index()], false);
   contactFinder_.addBody(id, particles_, bodies_);
+  cores_.update(id, particles_, bodies_, normals_);
   buildLattice(id);
   contactsStale_ = true;
   return id;
@@ -333,6 +334,7 @@ void World::retireBody(BodyId id, std::int64_t step) {
   rodForces_[id.index()].reset();
   bondLoads_[id.index()].reset();
   rigidBodies_.erase(std::find(rigidBodies_.begin(), rigidBodies_.end(), id));
+  cores_.update(id, particles_, bodies_, normals_);  // (none)
   contactsStale_ = true;
 }
 
@@ -505,6 +507,14 @@ FragmentHistogram World::fragments() const {
 std::size_t World::recomputeNormals(std::span<const ParticleId> ids) {
   const std::size_t n = normalUpdater_.recompute(ids, particles_, bodies_, contactFinder_, opened_, normals_);
   stats_.normalsRecomputed += n;
+  // the whole cores of the rigid and static bodies whose normals changed (ids of one body come together)
+  BodyId last;
+  for (const ParticleId q : ids) {
+    const BodyId b = particles_.body[q.index()];
+    if (b == last || bodies_.info[b.index()].kind == BodyKind::Deformable) continue;
+    last = b;
+    cores_.update(b, particles_, bodies_, normals_);
+  }
   return n;
 }
 

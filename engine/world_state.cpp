@@ -507,6 +507,7 @@ Status World::restoreState(const StateArchive& archive) {
   for (std::size_t i = 0; i < nb; ++i)
     if (!bodies_.info[i].particles.empty()) contactFinder_.addBody(BodyId(i), particles_, bodies_);  // (retired: none)
   contactFinder_.refreshAdjacency(particles_, connectors_);
+  cores_.updateAll(particles_, bodies_, normals_);
 
   contacts_ = std::move(contacts);
   patches_ = std::move(patches);

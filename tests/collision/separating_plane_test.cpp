@@ -1,6 +1,7 @@
-// The separating-plane narrow phase on real volpar bodies: one test per configuration of the paper's
-// section 5, concave bodies (a peg in a U-shaped slot, a box on an L), patch grouping, look-ahead
-// leaving the world untouched, and partial normal recomputation.
+// The separating-plane narrow phase on real volpar bodies (the particle method, which decides every patch here:
+// PlaneSettings::polytopeCores off): one test per configuration of the paper's section 5, concave bodies (a
+// peg in a U-shaped slot, a box on an L), patch grouping, look-ahead leaving the world untouched, and partial
+// normal recomputation.
 
 #include <gtest/gtest.h>
 
@@ -38,11 +39,13 @@ double angleDeg(const Vec3& a, const Vec3& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / std::numbers::pi;
 }
 
-/// Two bodies without gravity: A (added first, the lower id) above B.
+/// Two bodies without gravity: A (added first, the lower id) above B. The particle method decides every patch:
+/// two boxes would otherwise be decided by their whole polytope cores (polytope_cores_test.cpp).
 struct Pair {
   World world{[] {
     WorldSettings s;
     s.gravity = Vec3::Zero();
+    s.planes.polytopeCores = false;
     return s;
   }()};
   BodyId a, b;
