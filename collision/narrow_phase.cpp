@@ -100,12 +100,12 @@ std::uint32_t NarrowPhase::takenOver(const NarrowPhaseInput& in, const ContactSe
   return static_cast<std::uint32_t>(cursor - cache_.groups.cbegin());
 }
 
-void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedGroup& c,
+void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, std::uint32_t entry,
                         Worker& w, PatchSet& out) const {
+  const CachedGroup& c = cache_.groups[entry];
   const ParticleStore& p = *in.particles;
   const Quat& qa = in.bodies->state[g.a.index()].orientation;
   const bool plane = g.plane.valid();
-  const std::size_t patchBegin = w.o->patches.size();
   std::uint32_t k = c.pairFirst;  // position in cache order (parallel to pairs)
   for (std::uint32_t j = 0; j < c.patchCount; ++j) {
     const CachedPatch& cp = cache_.patches[c.patchFirst + j];
@@ -147,10 +147,9 @@ void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const
     if (!patch.validated) ++w.o->stats.unvalidated;
     w.o->patches.push_back(patch);
   }
-  remember(in, set, g, patchBegin, w);
-  // keep the pose of the computation, not this step's: the tolerance bounds the total drift
-  w.o->cache.groups.back().relRotation = c.relRotation;
-  w.o->cache.groups.back().relPosition = c.relPosition;
+  // the entry goes on as it is: the pose of the computation, not this step's (the tolerance bounds the total
+  // drift), and the normals in A's frame as computed
+  copyEntry(cache_, entry, w.o->cache);
 }
 
 void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
@@ -227,7 +226,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
                                   : cacheableGroup ? takenOver(in, contacts, g, cursor)
                                                    : kNoMatch;
       if (match != kNoMatch) {
-        reuse(in, contacts, g, cache_.groups[match], w, out);
+        reuse(in, contacts, g, match, w, out);
         continue;
       }
       const std::size_t patchBegin = w.o->patches.size();

@@ -134,7 +134,8 @@ class NarrowPhase {
   static constexpr std::uint32_t kNoMatch = 0xffffffffu;
   [[nodiscard]] std::uint32_t takenOver(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
                                         CacheCursor& cursor) const;
-  void reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, const CachedGroup& c,
+  /// Takes over the patches of cache entry `entry` for group g, and keeps the entry as it is for the next run.
+  void reuse(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, std::uint32_t entry,
              Worker& w, PatchSet& out) const;
   void remember(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, std::size_t patchBegin,
                 Worker& w) const;

@@ -182,17 +182,29 @@ void ContactFinder::forCells(const BodyGrid& g, const BodyState& s, const Aabb& 
     }
 }
 
-double ContactFinder::sweepReach(const BodyStore& bodies, BodyId a, BodyId b, const Vec3& n) const {
+void ContactFinder::gatherMotion(const BodyStore& bodies) {
+  motion_.resize(grids_.size());
+  for (std::size_t i = 0; i < grids_.size(); ++i) {
+    const BodyState& s = bodies.state[i];
+    BodyMotion& m = motion_[i];
+    m.velocity = s.linearVelocity;
+    m.spin = s.angularVelocity.norm() * extent_[i];
+    m.margin = margin_ * grids_[i].maxRadius;
+    m.worldFrame = grids_[i].worldFrame;
+  }
+}
+
+double ContactFinder::sweepReach(BodyId a, BodyId b, const Vec3& n) const {
   if (sweepTime_ <= 0.0) return 0.0;
-  const BodyState& sa = bodies.state[a.index()];
-  double closing = sa.angularVelocity.norm() * extent_[a.index()];
-  double reach = margin_ * grids_[a.index()].maxRadius;
+  const BodyMotion& ma = motion_[a.index()];
+  double closing = ma.spin;
+  double reach = ma.margin;
   if (b.valid()) {
-    const BodyState& sb = bodies.state[b.index()];
-    closing += (sb.linearVelocity - sa.linearVelocity).norm() + sb.angularVelocity.norm() * extent_[b.index()];
-    reach += margin_ * grids_[b.index()].maxRadius;
+    const BodyMotion& mb = motion_[b.index()];
+    closing += (mb.velocity - ma.velocity).norm() + mb.spin;
+    reach += mb.margin;
   } else {
-    closing += std::max(0.0, -n.dot(sa.linearVelocity));
+    closing += std::max(0.0, -n.dot(ma.velocity));
   }
   // (a reach the pair's motion cannot make infinite; the search stays inside the other body's grid however far
   // it reaches)
@@ -253,8 +265,12 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
                              std::span<const Aabb> boxes, Chunk& w) const {
   ContactSet& out = w.out;
   const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
-  const bool rigid = !grids_[a.index()].worldFrame && !grids_[b.index()].worldFrame;
-  const double swept = sweepReach(bodies, a, b);
+  const bool rigid = !motion_[a.index()].worldFrame && !motion_[b.index()].worldFrame;
+  const double swept = sweepReach(a, b);
+  // (boxes farther apart than the reach: no contact, and no list to keep; a list is made afresh once they
+  // come within reach, and finds what a kept one would)
+  const double reach = (motion_[a.index()].margin + motion_[b.index()].margin + swept) * (1.0 + 1e-6);
+  if (!boxes[a.index()].expanded(reach).overlaps(boxes[b.index()].expanded(reach))) return;
   if (!reuse_ || !rigid) {
     searchPair(p, bodies, a, b, boxes, swept, 0.0, out, nullptr);
     sortGroup(out, first);
@@ -286,9 +302,10 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
       list.skin = it->skin;
       list.sweep = it->sweep;
       ParticleContact c;
+      const auto listed = cache_.pairs.begin() + it->first;
+      w.cache.pairs.insert(w.cache.pairs.end(), listed, listed + it->count);
       for (std::uint32_t k = it->first; k < it->first + it->count; ++k) {
         const auto& [pa, pb] = cache_.pairs[k];
-        w.cache.pairs.emplace_back(pa, pb);
         if (touch(p, pa, pb, margin_, swept, c)) out.contacts.push_back(c);
       }
     } else {
@@ -331,7 +348,7 @@ void ContactFinder::selfContacts(const ParticleStore& p, BodyId id, ContactSet& 
 void ContactFinder::planeContacts(const ParticleStore& p, const BodyStore& bodies, BodyId id, PlaneId plane,
                                   const Plane& pl, ContactSet& out) const {
   const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
-  const double swept = sweepReach(bodies, id, BodyId{}, pl.normal);
+  const double swept = sweepReach(id, BodyId{}, pl.normal);
   for (const ParticleId pi : bodies.info[id.index()].particles) {
     const double r = p.radius[pi.index()];
     const double height = heightAbove(p, pi, pl);
@@ -350,6 +367,7 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
                          ThreadPool* pool) {
   if (adjacencyDirty_) rebuildAdjacency(particles, connectors);
   for (const BodyId id : deformables_) buildGrid(grids_[id.index()], bodies.info[id.index()].particles, particles.position, particles);
+  gatherMotion(bodies);
   const int ranks = processes_ ? processes_->size() : 1;
   if (ranks == 1) {
     search(particles, bodies, pairs, planePairs, planes, deformables_, boxes, out, pool);

@@ -171,7 +171,7 @@ class ContactFinder {
 
   /// How much farther than the margin [m] a pair of particles of bodies a and b (b invalid: a plane of
   /// normal n) can close within the sweep time.
-  [[nodiscard]] double sweepReach(const BodyStore& bodies, BodyId a, BodyId b, const Vec3& n = Vec3::Zero()) const;
+  [[nodiscard]] double sweepReach(BodyId a, BodyId b, const Vec3& n = Vec3::Zero()) const;
   /// Grid search of a body pair: contacts within the reach plus `sweep` into `out` (unsorted); with
   /// `listed`, every pair within that plus `skin` into it as well.
   void searchPair(const ParticleStore& particles, const BodyStore& bodies, BodyId a, BodyId b, std::span<const Aabb> boxes,
@@ -196,6 +196,15 @@ class ContactFinder {
 
   std::vector<BodyGrid> grids_;  // by body index
   std::vector<double> extent_;   // by body index: farthest particle centre from the body's origin [m]
+  /// What a search reads of each body for every pair it is in, gathered once per find() (by body index).
+  struct BodyMotion {
+    Vec3 velocity = Vec3::Zero();  // linear [m/s]
+    double spin = 0.0;             // angular speed times the extent: the fastest its particles turn [m/s]
+    double margin = 0.0;           // the speculative margin times its largest radius [m]
+    bool worldFrame = false;       // its grid is in the world frame (a deformable body)
+  };
+  std::vector<BodyMotion> motion_;
+  void gatherMotion(const BodyStore& bodies);
   bool reuse_ = true;
   PairCache cache_;              // candidate lists of the last find(), for the next
   std::vector<Chunk> chunks_;

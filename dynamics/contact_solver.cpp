@@ -76,6 +76,15 @@ using F4 = Eigen::Array4f;
 
 /// The x, y and z of four bodies' vectors, lane by lane.
 inline void gather(const V4* base, const std::array<std::uint32_t, 4>& slot, F4& x, F4& y, F4& z) {
+#if defined(__SSE2__)
+  // (a 4 x 4 transpose of the four vectors: their x, y, z and w)
+  __m128 r0 = _mm_load_ps(base[slot[0]].data()), r1 = _mm_load_ps(base[slot[1]].data());
+  __m128 r2 = _mm_load_ps(base[slot[2]].data()), r3 = _mm_load_ps(base[slot[3]].data());
+  _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
+  _mm_store_ps(x.data(), r0);
+  _mm_store_ps(y.data(), r1);
+  _mm_store_ps(z.data(), r2);
+#else
   const V4& p0 = base[slot[0]];
   const V4& p1 = base[slot[1]];
   const V4& p2 = base[slot[2]];
@@ -83,11 +92,21 @@ inline void gather(const V4* base, const std::array<std::uint32_t, 4>& slot, F4&
   x = F4(p0.x(), p1.x(), p2.x(), p3.x());
   y = F4(p0.y(), p1.y(), p2.y(), p3.y());
   z = F4(p0.z(), p1.z(), p2.z(), p3.z());
+#endif
 }
 
 /// The inverse of gather (lane by lane, in order: a padding lane writes the fixed side's zero back).
 inline void scatter(V4* base, const std::array<std::uint32_t, 4>& slot, const F4& x, const F4& y, const F4& z) {
+#if defined(__SSE2__)
+  __m128 r0 = _mm_load_ps(x.data()), r1 = _mm_load_ps(y.data()), r2 = _mm_load_ps(z.data()), r3 = _mm_setzero_ps();
+  _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
+  _mm_store_ps(base[slot[0]].data(), r0);
+  _mm_store_ps(base[slot[1]].data(), r1);
+  _mm_store_ps(base[slot[2]].data(), r2);
+  _mm_store_ps(base[slot[3]].data(), r3);
+#else
   for (int i = 0; i < 4; ++i) base[slot[static_cast<std::size_t>(i)]] = V4(x[i], y[i], z[i], 0.0f);
+#endif
 }
 
 /// Slot of a key in a table of 2^bits entries (Fibonacci hashing: the top bits of the product, which
@@ -477,8 +496,8 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       w_.resize(slots_);
       pv_.resize(slots_);
       pw_.resize(slots_);
-      dv_.resize(slots_);
-      dw_.resize(slots_);
+      dp_.resize(slots_);
+      dl_.resize(slots_);
       rowSlots_.resize(np);
       keys_.resize(posBase_.back());
       impulses_.resize(np);
@@ -499,8 +518,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
         w_[s] = narrow(bodies[i].w);
         pv_[s] = narrow(bodies[i].pv);
         pw_[s] = narrow(bodies[i].pw);
-        dv_[s] = bodies[i].v;
-        dw_[s] = bodies[i].w;
+        dp_[s] = dl_[s] = Vec3::Zero();
       }
     });
     for (int l = depth_; l >= 0; --l) {
@@ -614,11 +632,11 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     return started;
   };
 
-  // the velocities back in double, from the impulses: each point's impulse P, +P on B and -P on A, applied
-  // to the bodies' double velocities at the point's double arms. The iterations' own single-precision
-  // velocities agree with these to rounding, but only these conserve momentum to double precision (and a
-  // body without contacts keeps its velocity bit for bit). Run on each batch right after its last
-  // velocity iteration.
+  // the velocities back in double, from the impulses: each point's impulse P, +P on B and -P on A, and its
+  // moment at the point's double arm, summed per body in double; at the end each body's velocity takes
+  // its sums times its inverse mass and inertia. The iterations' own single-precision velocities agree
+  // with these to rounding, but only these conserve momentum to double precision (and a body without
+  // contacts keeps its velocity bit for bit). Run on each batch right after its last velocity iteration.
   const auto finish = [&](std::size_t part, std::size_t j) {
     const Batch& b = batches_[part].batches[j];
     double sum = 0.0;  // (normal impulses; summed on the thread's own stack)
@@ -636,18 +654,16 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       const Vec3 tangential(static_cast<double>(tx), static_cast<double>(ty), static_cast<double>(tz));
       impulses_[order_[k]] = impulse;
       sum += static_cast<double>(ln);
-      // (into the slots' double velocities: each leaf's slots lie apart from the others', so two threads
-      // never write one cache line; the friction acts at its own arms)
+      // (into the slots' double sums: each leaf's slots lie apart from the others', so two threads never write
+      // one cache line; the friction acts at its own arms)
       const Vec3 moment = in.frictionOffset.cross(tangential);
       if (in.a != kFixed) {
-        const SolverBody& a = bodies[in.a];
-        dv_[b.a[static_cast<std::size_t>(l)]] -= a.invMass * impulse;
-        dw_[b.a[static_cast<std::size_t>(l)]] -= a.invInertia * (in.rA.cross(impulse) + moment);
+        dp_[b.a[static_cast<std::size_t>(l)]] -= impulse;
+        dl_[b.a[static_cast<std::size_t>(l)]] -= in.rA.cross(impulse) + moment;
       }
       if (in.b != kFixed) {
-        const SolverBody& sb = bodies[in.b];
-        dv_[b.b[static_cast<std::size_t>(l)]] += sb.invMass * impulse;
-        dw_[b.b[static_cast<std::size_t>(l)]] += sb.invInertia * (in.rB.cross(impulse) + moment);
+        dp_[b.b[static_cast<std::size_t>(l)]] += impulse;
+        dl_[b.b[static_cast<std::size_t>(l)]] += in.rB.cross(impulse) + moment;
       }
     }
     return sum;
@@ -710,7 +726,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
         if (handsOver(l)) {
           if (worker == 0) {
             Handover& h = boundary_[static_cast<std::size_t>(l)];
-            if (last) handOver(h, v_, w_, dv_, dw_);
+            if (last) handOver(h, v_, w_, dp_, dl_);
             else handOver(h, v_, w_);
           }
           barrier_.wait();
@@ -724,7 +740,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
         });
         barrier_.wait();
         if (handsOver(l)) {
-          if (worker == 0) handOver(boundary_[static_cast<std::size_t>(l)], dv_, dw_);
+          if (worker == 0) handOver(boundary_[static_cast<std::size_t>(l)], dp_, dl_);
           barrier_.wait();
         }
       }
@@ -763,7 +779,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       if (worker == 0) {
         if (divideSetUp_) shareLanes();
         planEndHandovers();
-        handOver(interior_, dv_, dw_, pv_, pw_);
+        handOver(interior_, dp_, dl_, pv_, pw_);
         handOver(points_, impulses_);
         handOver(lanes_, nextCache_);
         handOver(partsOf_, normalSum_, started_);
@@ -774,8 +790,8 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     forShare(worker, depth_, [&](std::size_t leaf) {
       for (std::size_t k = leafStart_[leaf]; k < leafStart_[leaf + 1]; ++k) {
         const std::uint32_t i = byLeaf_[k].second, s = slot_[i];
-        bodies[i].v = dv_[s];
-        bodies[i].w = dw_[s];
+        bodies[i].v += bodies[i].invMass * dp_[s];
+        bodies[i].w += bodies[i].invInertia * dl_[s];
         bodies[i].pv = wide(pv_[s]);
         bodies[i].pw = wide(pw_[s]);
       }

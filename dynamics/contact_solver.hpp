@@ -249,7 +249,9 @@ class ContactSolver {
   SpinBarrier barrier_;
   // velocities of the solver bodies and of each part's fixed side (always zero)
   std::vector<V4> v_, w_, pv_, pw_;
-  std::vector<Vec3> dv_, dw_;  // the velocities in double, rebuilt from the impulses
+  /// per slot: the sums of the impulses and of their moments about the body's centre, in double, from which
+  /// the velocities are rebuilt at the end
+  std::vector<Vec3> dp_, dl_;
   std::vector<std::size_t> started_;  // per part: rows warm started
   std::vector<double> normalSum_;     // per part: the normal impulses
   std::array<std::vector<std::uint8_t>, 2> moved_;  // per part: whether a position sweep moved (two sweeps' worth)

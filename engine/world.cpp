@@ -913,14 +913,25 @@ void World::integratePositions() {
 void World::updateRigidParticles(BodyId id) {
   const BodyState& s = bodies_.state[id.index()];
   const Mat3 r = s.orientation.toRotationMatrix();
-  Aabb box;
+  const Vec3 centre = s.position, v = s.linearVelocity, w = s.angularVelocity;
+  const Vec3* const local = particles_.local.data();
+  const double* const radius = particles_.radius.data();
+  Vec3* const position = particles_.position.data();
+  Vec3* const velocity = particles_.velocity.data();
+  // (the box of the particles' spheres, component by component)
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  double lo0 = kInf, lo1 = kInf, lo2 = kInf, hi0 = -kInf, hi1 = -kInf, hi2 = -kInf;
   for (const ParticleId p : bodies_.info[id.index()].particles) {
-    const Vec3 arm = r * particles_.local[p.index()];
-    particles_.position[p.index()] = s.position + arm;
-    particles_.velocity[p.index()] = s.linearVelocity + s.angularVelocity.cross(arm);
-    box.extend(Aabb::sphere(particles_.position[p.index()], particles_.radius[p.index()]));
+    const std::size_t i = p.index();
+    const Vec3 arm = r * local[i];
+    const Vec3 x = centre + arm;
+    position[i] = x;
+    velocity[i] = v + w.cross(arm);
+    const double rad = radius[i];
+    lo0 = std::min(lo0, x.x() - rad), lo1 = std::min(lo1, x.y() - rad), lo2 = std::min(lo2, x.z() - rad);
+    hi0 = std::max(hi0, x.x() + rad), hi1 = std::max(hi1, x.y() + rad), hi2 = std::max(hi2, x.z() + rad);
   }
-  bodyBoxes_[id.index()] = box;
+  bodyBoxes_[id.index()] = Aabb{Vec3(lo0, lo1, lo2), Vec3(hi0, hi1, hi2)};
 }
 
 void World::updateDeformableBodyStates() {
