@@ -214,13 +214,38 @@ double ContactFinder::sweepReach(BodyId a, BodyId b, const Vec3& n) const {
 
 void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, BodyId a, BodyId b,
                                std::span<const Aabb> boxes, double sweep, double skin, ContactSet& out,
-                               std::vector<std::pair<ParticleId, ParticleId>>* listed) const {
+                               std::vector<std::pair<ParticleId, ParticleId>>* listed,
+                               std::array<std::vector<ParticleId>, 2>& near) const {
   // the boxes grown by the speculative reach (and the sweep and the skin)
   const double grow = margin_ * (grids_[a.index()].maxRadius + grids_[b.index()].maxRadius) + sweep + skin;
   const Aabb boxA = boxes[a.index()].expanded(grow);
   const Aabb boxB = boxes[b.index()].expanded(grow);
   const Aabb overlap{boxA.lo.cwiseMax(boxB.lo), boxA.hi.cwiseMin(boxB.hi)};
   if (!overlap.valid()) return;
+  const std::vector<ParticleId>& all0 = bodies.info[a.index()].particles;
+  const std::vector<ParticleId>& all1 = bodies.info[b.index()].particles;
+  if (all0.size() <= kFewParticles && all1.size() <= kFewParticles) {
+    // small bodies: every pair of the particles whose reach overlaps the other's grown box (a pair within
+    // reach has both; the set of pairs found, which the caller sorts, is the grids')
+    const auto gather = [&](const std::vector<ParticleId>& all, const Aabb& other, std::vector<ParticleId>& into) {
+      into.clear();
+      for (const ParticleId q : all)
+        if (Aabb::sphere(p.position[q.index()], p.radius[q.index()] + sweep + skin).overlaps(other)) into.push_back(q);
+    };
+    gather(all0, boxB, near[0]);
+    if (near[0].empty()) return;
+    gather(all1, boxA, near[1]);
+    ParticleContact c;
+    for (const ParticleId pa : near[0])
+      for (const ParticleId pb : near[1]) {
+        if (listed) {
+          const double rs = (p.radius[pa.index()] + p.radius[pb.index()]) * (1.0 + margin_) + sweep + skin;
+          if ((p.position[pb.index()] - p.position[pa.index()]).squaredNorm() < rs * rs) listed->emplace_back(pa, pb);
+        }
+        if (touch(p, pa, pb, margin_, sweep, c)) out.contacts.push_back(c);
+      }
+    return;
+  }
   // iterate the body with fewer particles, look up the other's grid
   const bool iterateA = bodies.info[a.index()].particles.size() <= bodies.info[b.index()].particles.size();
   const BodyId it = iterateA ? a : b;
@@ -272,7 +297,7 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
   const double reach = (motion_[a.index()].margin + motion_[b.index()].margin + swept) * (1.0 + 1e-6);
   if (!boxes[a.index()].expanded(reach).overlaps(boxes[b.index()].expanded(reach))) return;
   if (!reuse_ || !rigid) {
-    searchPair(p, bodies, a, b, boxes, swept, 0.0, out, nullptr);
+    searchPair(p, bodies, a, b, boxes, swept, 0.0, out, nullptr, w.near);
     sortGroup(out, first);
   } else {
     // B's pose in A's frame
@@ -315,7 +340,7 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
       // (a pair speeding up lists a little farther than it needs, so that it is not searched every step)
       list.sweep = 1.5 * swept;
       w.found.clear();
-      searchPair(p, bodies, a, b, boxes, swept, list.skin + (list.sweep - swept), out, &w.found);
+      searchPair(p, bodies, a, b, boxes, swept, list.skin + (list.sweep - swept), out, &w.found, w.near);
       sortGroup(out, first);
       std::sort(w.found.begin(), w.found.end());
       w.cache.pairs.insert(w.cache.pairs.end(), w.found.begin(), w.found.end());
