@@ -332,7 +332,9 @@ void NarrowPhase::shareContacts(const ContactSet& contacts, std::vector<T>& valu
 
 void NarrowPhase::makePatches(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g, Worker& w,
                               PatchSet& out) const {
-  if (settings_.polytopeCores && in.cores && !g.plane.valid() && g.a != g.b && !in.cores->vertices(g.a).empty() && !in.cores->vertices(g.b).empty()) {
+  const bool cores = settings_.polytopeCores && in.cores && !g.plane.valid() && g.a != g.b &&
+                     !in.cores->vertices(g.a).empty() && !in.cores->vertices(g.b).empty();
+  if (cores) {
     // two whole polytope cores: one patch, the plane between them
     w.order.resize(g.count);
     std::iota(w.order.begin(), w.order.end(), g.first);

@@ -1431,7 +1431,8 @@ bool PlaneSolver::solveCores(const NarrowPhaseInput& in, const ContactSet& set, 
     int n = 0;
     for (int k = 0; k < h.count; ++k) {
       const std::uint32_t v = index[static_cast<std::size_t>(k)];
-      if (!(h.weight[static_cast<std::size_t>(k)] > 0.0) || std::find(seen.begin(), seen.begin() + n, v) != seen.begin() + n) continue;
+      const bool known = std::find(seen.begin(), seen.begin() + n, v) != seen.begin() + n;
+      if (!(h.weight[static_cast<std::size_t>(k)] > 0.0) || known) continue;
       seen[static_cast<std::size_t>(n++)] = v;
     }
     return n;
