@@ -222,6 +222,15 @@ void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, 
   const Aabb boxB = boxes[b.index()].expanded(grow);
   const Aabb overlap{boxA.lo.cwiseMax(boxB.lo), boxA.hi.cwiseMin(boxB.hi)};
   if (!overlap.valid()) return;
+  // a particle pair found by either search: listed within the skin, a contact within the reach
+  ParticleContact c;
+  const auto consider = [&](ParticleId pa, ParticleId pb) {
+    if (listed) {
+      const double rs = (p.radius[pa.index()] + p.radius[pb.index()]) * (1.0 + margin_) + sweep + skin;
+      if ((p.position[pb.index()] - p.position[pa.index()]).squaredNorm() < rs * rs) listed->emplace_back(pa, pb);
+    }
+    if (touch(p, pa, pb, margin_, sweep, c)) out.contacts.push_back(c);
+  };
   const std::vector<ParticleId>& all0 = bodies.info[a.index()].particles;
   const std::vector<ParticleId>& all1 = bodies.info[b.index()].particles;
   if (all0.size() <= kFewParticles && all1.size() <= kFewParticles) {
@@ -235,26 +244,18 @@ void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, 
     gather(all0, boxB, near[0]);
     if (near[0].empty()) return;
     gather(all1, boxA, near[1]);
-    ParticleContact c;
     for (const ParticleId pa : near[0])
-      for (const ParticleId pb : near[1]) {
-        if (listed) {
-          const double rs = (p.radius[pa.index()] + p.radius[pb.index()]) * (1.0 + margin_) + sweep + skin;
-          if ((p.position[pb.index()] - p.position[pa.index()]).squaredNorm() < rs * rs) listed->emplace_back(pa, pb);
-        }
-        if (touch(p, pa, pb, margin_, sweep, c)) out.contacts.push_back(c);
-      }
+      for (const ParticleId pb : near[1]) consider(pa, pb);
     return;
   }
   // iterate the body with fewer particles, look up the other's grid
-  const bool iterateA = bodies.info[a.index()].particles.size() <= bodies.info[b.index()].particles.size();
+  const bool iterateA = all0.size() <= all1.size();
   const BodyId it = iterateA ? a : b;
   const BodyId other = iterateA ? b : a;
   const BodyGrid& gi = grids_[it.index()];
   const BodyGrid& go = grids_[other.index()];
   const BodyState& so = bodies.state[other.index()];
   const Mat3 rtOther = so.orientation.toRotationMatrix().transpose();
-  ParticleContact c;
   forCells(gi, bodies.state[it.index()], overlap.expanded(gi.maxRadius), [&](ParticleId pi) {
     const Vec3& x = p.position[pi.index()];
     // (a hair wider than the largest sum of radii, so rounding in the frame change cannot drop a pair)
@@ -275,12 +276,7 @@ void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, 
         for (std::size_t cell = row + static_cast<std::size_t>(lo.x()); cell <= row + static_cast<std::size_t>(hi.x()); ++cell)
           for (std::uint32_t k = go.cellStart[cell]; k < go.cellStart[cell + 1]; ++k) {
             const ParticleId q = go.items[k];
-            const ParticleId pa = iterateA ? pi : q, pb = iterateA ? q : pi;
-            if (listed) {
-              const double rs = (p.radius[pa.index()] + p.radius[pb.index()]) * (1.0 + margin_) + sweep + skin;
-              if ((p.position[pb.index()] - p.position[pa.index()]).squaredNorm() < rs * rs) listed->emplace_back(pa, pb);
-            }
-            if (touch(p, pa, pb, margin_, sweep, c)) out.contacts.push_back(c);
+            consider(iterateA ? pi : q, iterateA ? q : pi);
           }
       }
   });
