@@ -455,6 +455,38 @@ TEST(ContactPhysics, SeparatingPlanesSlideSmoothlyWhereCentreLinesBump) {
   std::printf("vertical velocity noise: separating planes %.3g m/s, centre-line normals %.3g m/s\n", planes, raw);
 }
 
+// Position correction: a crate started 3 mm into the ground (its bottom layer's spheres, radius 5 cm, at
+// 4.7 cm) is pushed out by pseudo velocities that carry no momentum; the overlap beyond the slop (1 % of the
+// radius against a plane) shrinks each step by the default SolverSettings::baumgarte (0.6, docs/architecture.md),
+// to 0.4 of itself
+TEST(ContactPhysics, OverlapBeyondTheSlopShrinksByTheCorrectionFractionEachStep) {
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+allow_initial_overlap: true
+materials:
+  crate: {density: 1000, restitution: 0.0, friction: 0.5}
+planes:
+  - {normal: [0, 0, 1], offset: 0, material: crate}
+bodies:
+  - shape: {box: {size: [0.3, 0.3, 0.3]}}
+    fill: {lattice: cubic, radius: 0.05, spacing: 0.1}
+    material: crate
+    position: [0, 0, 0.147]
+)");
+  const auto excess = [&] { return (0.15 - w.bodies().state[0].position.z()) - 0.01 * 0.05; };
+  double before = excess();
+  ASSERT_NEAR(before, 0.0025, 1e-9);
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_EQ(w.step(), StepStatus::Ok);
+    const double after = excess();
+    EXPECT_NEAR(after / before, 0.4, 0.02) << "step " << i << ": " << before << " m -> " << after << " m";
+    before = after;
+  }
+  // the correction moved the crate without momentum: it does not fly off the ground
+  EXPECT_LT(std::abs(w.bodies().state[0].linearVelocity.z()), 1e-6);
+}
+
 TEST(ContactPhysics, RestingContactNeverGainsEnergy) {
   World w = sceneWorld("examples/tower.yaml");
   const double e0 = w.energy().total();
