@@ -456,9 +456,9 @@ TEST(ContactPhysics, SeparatingPlanesSlideSmoothlyWhereCentreLinesBump) {
 }
 
 // Position correction: a crate started 3 mm into the ground (its bottom layer's spheres, radius 5 cm, at
-// 4.7 cm) is pushed out by pseudo velocities that carry no momentum; the overlap beyond the slop (1 % of the
-// radius against a plane) shrinks each step by the default SolverSettings::baumgarte (0.6, docs/architecture.md),
-// to 0.4 of itself
+// 4.7 cm) is pushed out by pseudo velocities that carry no momentum; the overlap beyond the slop (the default
+// WorldSettings::slop of the radius against a plane) shrinks each step by the default
+// SolverSettings::baumgarte (0.6, docs/architecture.md), to 0.4 of itself
 TEST(ContactPhysics, OverlapBeyondTheSlopShrinksByTheCorrectionFractionEachStep) {
   World w = test::worldFromString(R"(
 dt: 0.004166666666666667
@@ -474,9 +474,10 @@ bodies:
     material: crate
     position: [0, 0, 0.147]
 )");
-  const auto excess = [&] { return (0.15 - w.bodies().state[0].position.z()) - 0.01 * 0.05; };
+  const double slop = WorldSettings{}.slop * 0.05;
+  const auto excess = [&] { return (0.15 - w.bodies().state[0].position.z()) - slop; };
   double before = excess();
-  ASSERT_NEAR(before, 0.0025, 1e-9);
+  ASSERT_NEAR(before, 0.003 - slop, 1e-9);
   for (int i = 0; i < 4; ++i) {
     ASSERT_EQ(w.step(), StepStatus::Ok);
     const double after = excess();
@@ -485,6 +486,38 @@ bodies:
   }
   // the correction moved the crate without momentum: it does not fly off the ground
   EXPECT_LT(std::abs(w.bodies().state[0].linearVelocity.z()), 1e-6);
+}
+
+// Position correction stops at the slop (WorldSettings::slop of r_a + r_b; of r against a plane): two
+// crates of 5 cm spheres stacked on the ground, each started 3 mm deep (in the ground, in the lower crate),
+// are pushed out to the slop and no farther: after 2 s the lower crate rests slop * r deep in the ground
+// and the upper one slop * 2 r deep in the lower, both within a tenth of that, and at rest
+TEST(ContactPhysics, OverlapsAreCorrectedDownToTheSlopAndNoFurther) {
+  World w = test::worldFromString(R"(
+dt: 0.004166666666666667
+steps: 1
+allow_initial_overlap: true
+materials:
+  crate: {density: 1000, restitution: 0.0, friction: 0.5}
+planes:
+  - {normal: [0, 0, 1], offset: 0, material: crate}
+bodies:
+  - shape: {box: {size: [0.3, 0.3, 0.3]}}
+    fill: {lattice: cubic, radius: 0.05, spacing: 0.1}
+    material: crate
+    position: [0, 0, 0.147]
+  - shape: {box: {size: [0.3, 0.3, 0.3]}}
+    fill: {lattice: cubic, radius: 0.05, spacing: 0.1}
+    material: crate
+    position: [0, 0, 0.444]
+)");
+  for (int i = 0; i < 480; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
+  const double slop = WorldSettings{}.slop;
+  const double lower = w.bodies().state[0].position.z(), upper = w.bodies().state[1].position.z();
+  EXPECT_NEAR(0.15 - lower, slop * 0.05, 0.1 * slop * 0.05) << "into the ground";
+  EXPECT_NEAR(0.3 - (upper - lower), slop * 0.1, 0.1 * slop * 0.1) << "into the lower crate";
+  EXPECT_NEAR(w.stats().maxPenetration, slop * 0.1, 0.1 * slop * 0.1);
+  EXPECT_LT(w.energy().kinetic, 1e-8);
 }
 
 TEST(ContactPhysics, RestingContactNeverGainsEnergy) {
