@@ -5,12 +5,34 @@
 #include <algorithm>
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <random>
+#include <system_error>
+#include <vector>
 
 namespace volpar::test {
 
 std::string sourcePath(const std::string& relative) { return std::string(VOLPAR_SOURCE_DIR) + "/" + relative; }
+
+namespace {
+
+/// The folders tempDir() made in this process: removed when it exits, unless a test failed (they are then
+/// kept to be looked at).
+std::vector<std::filesystem::path>& madeDirs() {
+  static std::vector<std::filesystem::path> dirs;
+  static const bool registered = [] {
+    return std::atexit([] {
+      if (!::testing::UnitTest::GetInstance()->Passed()) return;
+      std::error_code ignored;
+      for (const auto& dir : madeDirs()) std::filesystem::remove_all(dir, ignored);
+    }) == 0;
+  }();
+  (void)registered;
+  return dirs;
+}
+
+}  // namespace
 
 std::string tempDir() {
   static std::mt19937_64 rng(std::random_device{}());
@@ -20,6 +42,7 @@ std::string tempDir() {
     if (c == '/') c = '_';
   const auto dir = std::filesystem::temp_directory_path() / ("volpar_" + name + "_" + std::to_string(rng() % 1000000));
   std::filesystem::create_directories(dir);
+  madeDirs().push_back(dir);
   return dir.string();
 }
 
