@@ -22,9 +22,10 @@ struct WorldSettings {
   /// Use each particle pair's centre-line normal instead of its patch's separating plane (for comparison).
   bool rawNormals = false;
   /// Penetration left uncorrected, as a fraction of the sum of the two particles' radii [-] (against a
-  /// plane, of the particle's radius). Bodies at rest sink this far into each other and no farther; what
-  /// the solver's iterations leave under a deep stack comes on top (docs/benchmarks.md: 0.75 % keeps
-  /// pile-8000's deepest overlap under 1 mm at 5 cm radii).
+  /// plane, of the particle's radius). Position correction pushes overlapping bodies apart down to this
+  /// overlap and no further (bodies that come to rest gently may touch less deeply); what the solver's
+  /// iterations leave under a deep stack comes on top (docs/benchmarks.md: 0.75 % keeps pile-8000's
+  /// deepest overlap under 1 mm at 5 cm radii).
   double slop = 0.0075;
   /// Speculative contact reach, as a fraction of the sum of the two particles' radii [-]: pairs this close
   /// to touching are contacts with a negative depth (gap) that the solver lets close but not overlap. 0.25
