@@ -7,7 +7,9 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <initializer_list>
 #include <numbers>
+#include <string>
 
 #include "tests/support/test_support.hpp"
 
@@ -455,12 +457,10 @@ TEST(ContactPhysics, SeparatingPlanesSlideSmoothlyWhereCentreLinesBump) {
   std::printf("vertical velocity noise: separating planes %.3g m/s, centre-line normals %.3g m/s\n", planes, raw);
 }
 
-// Position correction: a crate started 3 mm into the ground (its bottom layer's spheres, radius 5 cm, at
-// 4.7 cm) is pushed out by pseudo velocities that carry no momentum; the overlap beyond the slop (the default
-// WorldSettings::slop of the radius against a plane) shrinks each step by the default
-// SolverSettings::baumgarte (0.6, docs/architecture.md), to 0.4 of itself
-TEST(ContactPhysics, OverlapBeyondTheSlopShrinksByTheCorrectionFractionEachStep) {
-  World w = test::worldFromString(R"(
+/// Crates of 27 spheres (radius 5 cm) on the ground, their centres at the heights given, allowed to start
+/// overlapping (no restitution, friction 0.5).
+World cratesOnTheGround(std::initializer_list<double> heights) {
+  std::string scene = R"(
 dt: 0.004166666666666667
 steps: 1
 allow_initial_overlap: true
@@ -469,11 +469,21 @@ materials:
 planes:
   - {normal: [0, 0, 1], offset: 0, material: crate}
 bodies:
-  - shape: {box: {size: [0.3, 0.3, 0.3]}}
+)";
+  for (const double z : heights)
+    scene += R"(  - shape: {box: {size: [0.3, 0.3, 0.3]}}
     fill: {lattice: cubic, radius: 0.05, spacing: 0.1}
     material: crate
-    position: [0, 0, 0.147]
-)");
+    position: [0, 0, )" + std::to_string(z) + "]\n";
+  return test::worldFromString(scene);
+}
+
+// Position correction: a crate started 3 mm into the ground (its bottom layer's spheres, radius 5 cm, at
+// 4.7 cm) is pushed out by pseudo velocities that carry no momentum; the overlap beyond the slop (the default
+// WorldSettings::slop of the radius against a plane) shrinks each step by the default
+// SolverSettings::baumgarte (0.6, docs/architecture.md), to 0.4 of itself
+TEST(ContactPhysics, OverlapBeyondTheSlopShrinksByTheCorrectionFractionEachStep) {
+  World w = cratesOnTheGround({0.147});
   const double slop = WorldSettings{}.slop * 0.05;
   const auto excess = [&] { return (0.15 - w.bodies().state[0].position.z()) - slop; };
   double before = excess();
@@ -493,24 +503,7 @@ bodies:
 // are pushed out to the slop and no farther: after 2 s the lower crate rests slop * r deep in the ground
 // and the upper one slop * 2 r deep in the lower, both within a tenth of that, and at rest
 TEST(ContactPhysics, OverlapsAreCorrectedDownToTheSlopAndNoFurther) {
-  World w = test::worldFromString(R"(
-dt: 0.004166666666666667
-steps: 1
-allow_initial_overlap: true
-materials:
-  crate: {density: 1000, restitution: 0.0, friction: 0.5}
-planes:
-  - {normal: [0, 0, 1], offset: 0, material: crate}
-bodies:
-  - shape: {box: {size: [0.3, 0.3, 0.3]}}
-    fill: {lattice: cubic, radius: 0.05, spacing: 0.1}
-    material: crate
-    position: [0, 0, 0.147]
-  - shape: {box: {size: [0.3, 0.3, 0.3]}}
-    fill: {lattice: cubic, radius: 0.05, spacing: 0.1}
-    material: crate
-    position: [0, 0, 0.444]
-)");
+  World w = cratesOnTheGround({0.147, 0.444});
   for (int i = 0; i < 480; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
   const double slop = WorldSettings{}.slop;
   const double lower = w.bodies().state[0].position.z(), upper = w.bodies().state[1].position.z();
