@@ -52,8 +52,26 @@ void Broadphase::rebuildPairs() {
   std::sort(pairs_.begin(), pairs_.end());
 }
 
+void Broadphase::queryMoved(std::size_t begin, std::size_t end, std::vector<BodyPair>& out) const {
+  for (std::size_t k = begin; k < end; ++k) {
+    const BodyId id = movedList_[k];
+    const Aabb& box = fatBox(id);
+    moving_.query(box, [&](std::int32_t node) {
+      const BodyId other(moving_.userData(node));
+      if (other == id || (moved_[other.index()] && other < id)) return true;
+      out.push_back(id < other ? BodyPair{id, other} : BodyPair{other, id});
+      return true;
+    });
+    static_.query(box, [&](std::int32_t node) {
+      const BodyId other(static_.userData(node));
+      out.push_back(id < other ? BodyPair{id, other} : BodyPair{other, id});
+      return true;
+    });
+  }
+}
+
 void Broadphase::findPairs(std::span<const Plane> planes, std::vector<BodyPair>& pairs,
-                           std::vector<BodyPlanePair>& planePairs) {
+                           std::vector<BodyPlanePair>& planePairs, ThreadPool* pool) {
   if (pairsDirty_) {
     rebuildPairs();
     pairsDirty_ = false;
@@ -63,21 +81,20 @@ void Broadphase::findPairs(std::span<const Plane> planes, std::vector<BodyPair>&
       return (moved_[pr.a.index()] || moved_[pr.b.index()]) && !fatBox(pr.a).overlaps(fatBox(pr.b));
     };
     pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), stale), pairs_.end());
-    // ... and find their pairs anew (a pair of two rebuilt boxes is found from the smaller id only)
+    // ... and find their pairs anew (a pair of two rebuilt boxes is found from the smaller id only; the
+    // queries in chunks of the rebuilt bodies where threads share them, their pairs sorted together)
     fresh_.clear();
-    for (const BodyId id : movedList_) {
-      const Aabb& box = fatBox(id);
-      moving_.query(box, [&](std::int32_t node) {
-        const BodyId other(moving_.userData(node));
-        if (other == id || (moved_[other.index()] && other < id)) return true;
-        fresh_.push_back(id < other ? BodyPair{id, other} : BodyPair{other, id});
-        return true;
+    const std::size_t moved = movedList_.size();
+    if (pool && pool->worthSharing(moved, 64)) {
+      const std::size_t chunks = ThreadPool::kChunksPerWorker * static_cast<std::size_t>(pool->workers());
+      if (freshChunks_.size() < chunks) freshChunks_.resize(chunks);
+      pool->runItems(chunks, [&](int, std::size_t c) {
+        freshChunks_[c].clear();
+        queryMoved(moved * c / chunks, moved * (c + 1) / chunks, freshChunks_[c]);
       });
-      static_.query(box, [&](std::int32_t node) {
-        const BodyId other(static_.userData(node));
-        fresh_.push_back(id < other ? BodyPair{id, other} : BodyPair{other, id});
-        return true;
-      });
+      for (std::size_t c = 0; c < chunks; ++c) fresh_.insert(fresh_.end(), freshChunks_[c].begin(), freshChunks_[c].end());
+    } else {
+      queryMoved(0, moved, fresh_);
     }
     std::sort(fresh_.begin(), fresh_.end());
     merged_.resize(pairs_.size() + fresh_.size());

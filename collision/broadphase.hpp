@@ -14,6 +14,7 @@
 #include "volpar/collision/aabb_tree.hpp"
 #include "volpar/engine/core/ids.hpp"
 #include "volpar/engine/core/plane.hpp"
+#include "volpar/engine/core/thread_pool.hpp"
 
 namespace volpar {
 
@@ -43,8 +44,10 @@ class Broadphase {
   void moveBody(BodyId id, const Aabb& tight, const Vec3& displacement);
 
   /// Every pair of bodies whose fat boxes overlap (at least one of them moving), sorted; and every
-  /// (moving body, plane) pair whose fat box reaches the plane's solid side.
-  void findPairs(std::span<const Plane> planes, std::vector<BodyPair>& pairs, std::vector<BodyPlanePair>& planePairs);
+  /// (moving body, plane) pair whose fat box reaches the plane's solid side. With a `pool`, the queries of
+  /// the bodies whose fat boxes were rebuilt are shared among its threads; the pairs are the same.
+  void findPairs(std::span<const Plane> planes, std::vector<BodyPair>& pairs, std::vector<BodyPlanePair>& planePairs,
+                 ThreadPool* pool = nullptr);
 
   [[nodiscard]] const AabbTree& movingTree() const { return moving_; }
   [[nodiscard]] const AabbTree& staticTree() const { return static_; }
@@ -69,6 +72,8 @@ class Broadphase {
   std::vector<std::pair<std::int32_t, std::int32_t>> stack_;  // traversal scratch
   std::vector<BodyPair> pairs_;                // persistent, sorted
   std::vector<BodyPair> fresh_, merged_;       // scratch
+  std::vector<std::vector<BodyPair>> freshChunks_;  // scratch: the pairs found by each chunk of the queries
+  void queryMoved(std::size_t begin, std::size_t end, std::vector<BodyPair>& out) const;
   bool pairsDirty_ = true;
   std::vector<std::uint8_t> moved_;            // by body: fat box rebuilt since the last findPairs
   std::vector<BodyId> movedList_;

@@ -198,7 +198,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   if (ranks > 1) divideGroups(in, contacts);
   const std::size_t lo = ranks > 1 ? groupStart_[static_cast<std::size_t>(me)] : 0;
   const std::size_t hi = ranks > 1 ? groupStart_[static_cast<std::size_t>(me) + 1] : groups;
-  const bool shared = pool && pool->worthSharing(hi - lo, 512);
+  const bool shared = pool && pool->worthSharing(hi - lo, 128);
   const std::size_t workers = shared ? static_cast<std::size_t>(pool->workers()) : 1;
   const std::size_t chunks = shared ? ThreadPool::kChunksPerWorker * workers : 1;
   if (workers_.size() < workers) workers_.resize(workers);

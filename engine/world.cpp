@@ -1,6 +1,7 @@
 #include "volpar/engine/world.hpp"
 
 #include <Eigen/SVD>
+#include <emmintrin.h>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -285,7 +286,7 @@ void World::detectCollisions() {
   for (const BodyId id : deformableBodies_)
     broadphase_.moveBody(id, bodyBoxes_[id.index()], bodies_.state[id.index()].linearVelocity * settings_.dt);
   stats_.proxyMoves = broadphase_.reinsertions();
-  broadphase_.findPairs(planes_, bodyPairs_, planePairs_);
+  broadphase_.findPairs(planes_, bodyPairs_, planePairs_, pool_.get());
   stats_.time.broadphase = secondsSince(t);
 
   t = Clock::now();
@@ -913,25 +914,53 @@ void World::integratePositions() {
 void World::updateRigidParticles(BodyId id) {
   const BodyState& s = bodies_.state[id.index()];
   const Mat3 r = s.orientation.toRotationMatrix();
-  const Vec3 centre = s.position, v = s.linearVelocity, w = s.angularVelocity;
   const Vec3* const local = particles_.local.data();
   const double* const radius = particles_.radius.data();
   Vec3* const position = particles_.position.data();
   Vec3* const velocity = particles_.velocity.data();
-  // (the box of the particles' spheres, component by component)
+  const std::vector<ParticleId>& ids = bodies_.info[id.index()].particles;
+  // two particles at a time, one in each lane of a pair of doubles: each lane does one particle's arithmetic
+  // in the order one particle alone does it (arm = r * local row by row, x = centre + arm, v + w x arm), so
+  // the result is that of a particle at a time, bit for bit; the box of the particles' spheres is the
+  // lanes' minima and maxima, which do not depend on the order
+  const auto all = [](double x) { return _mm_set1_pd(x); };
+  const __m128d r00 = all(r(0, 0)), r01 = all(r(0, 1)), r02 = all(r(0, 2));
+  const __m128d r10 = all(r(1, 0)), r11 = all(r(1, 1)), r12 = all(r(1, 2));
+  const __m128d r20 = all(r(2, 0)), r21 = all(r(2, 1)), r22 = all(r(2, 2));
+  const __m128d c0 = all(s.position.x()), c1 = all(s.position.y()), c2 = all(s.position.z());
+  const __m128d v0 = all(s.linearVelocity.x()), v1 = all(s.linearVelocity.y()), v2 = all(s.linearVelocity.z());
+  const __m128d w0 = all(s.angularVelocity.x()), w1 = all(s.angularVelocity.y()), w2 = all(s.angularVelocity.z());
   constexpr double kInf = std::numeric_limits<double>::infinity();
-  double lo0 = kInf, lo1 = kInf, lo2 = kInf, hi0 = -kInf, hi1 = -kInf, hi2 = -kInf;
-  for (const ParticleId p : bodies_.info[id.index()].particles) {
-    const std::size_t i = p.index();
-    const Vec3 arm = r * local[i];
-    const Vec3 x = centre + arm;
-    position[i] = x;
-    velocity[i] = v + w.cross(arm);
-    const double rad = radius[i];
-    lo0 = std::min(lo0, x.x() - rad), lo1 = std::min(lo1, x.y() - rad), lo2 = std::min(lo2, x.z() - rad);
-    hi0 = std::max(hi0, x.x() + rad), hi1 = std::max(hi1, x.y() + rad), hi2 = std::max(hi2, x.z() + rad);
-  }
-  bodyBoxes_[id.index()] = Aabb{Vec3(lo0, lo1, lo2), Vec3(hi0, hi1, hi2)};
+  __m128d lo0 = all(kInf), lo1 = lo0, lo2 = lo0, hi0 = all(-kInf), hi1 = hi0, hi2 = hi0;
+  // (Eigen's r * local sums the first two rows' products from the left, the third's from the right)
+  const auto left = [](__m128d a, __m128d b, __m128d c, __m128d x, __m128d y, __m128d z) {
+    return _mm_add_pd(_mm_add_pd(_mm_mul_pd(a, x), _mm_mul_pd(b, y)), _mm_mul_pd(c, z));
+  };
+  const auto right = [](__m128d a, __m128d b, __m128d c, __m128d x, __m128d y, __m128d z) {
+    return _mm_add_pd(_mm_mul_pd(a, x), _mm_add_pd(_mm_mul_pd(b, y), _mm_mul_pd(c, z)));
+  };
+  const auto place = [&](std::size_t i, std::size_t j) {  // (particles i and j; j == i for a last one alone)
+    const __m128d lx = _mm_set_pd(local[j].x(), local[i].x()), ly = _mm_set_pd(local[j].y(), local[i].y()),
+                  lz = _mm_set_pd(local[j].z(), local[i].z());
+    const __m128d ax = left(r00, r01, r02, lx, ly, lz), ay = left(r10, r11, r12, lx, ly, lz), az = right(r20, r21, r22, lx, ly, lz);
+    const __m128d x0 = _mm_add_pd(c0, ax), x1 = _mm_add_pd(c1, ay), x2 = _mm_add_pd(c2, az);
+    const __m128d u0 = _mm_add_pd(v0, _mm_sub_pd(_mm_mul_pd(w1, az), _mm_mul_pd(w2, ay)));
+    const __m128d u1 = _mm_add_pd(v1, _mm_sub_pd(_mm_mul_pd(w2, ax), _mm_mul_pd(w0, az)));
+    const __m128d u2 = _mm_add_pd(v2, _mm_sub_pd(_mm_mul_pd(w0, ay), _mm_mul_pd(w1, ax)));
+    _mm_storel_pd(&position[i].x(), x0), _mm_storel_pd(&position[i].y(), x1), _mm_storel_pd(&position[i].z(), x2);
+    _mm_storel_pd(&velocity[i].x(), u0), _mm_storel_pd(&velocity[i].y(), u1), _mm_storel_pd(&velocity[i].z(), u2);
+    _mm_storeh_pd(&position[j].x(), x0), _mm_storeh_pd(&position[j].y(), x1), _mm_storeh_pd(&position[j].z(), x2);
+    _mm_storeh_pd(&velocity[j].x(), u0), _mm_storeh_pd(&velocity[j].y(), u1), _mm_storeh_pd(&velocity[j].z(), u2);
+    const __m128d rad = _mm_set_pd(radius[j], radius[i]);
+    lo0 = _mm_min_pd(lo0, _mm_sub_pd(x0, rad)), lo1 = _mm_min_pd(lo1, _mm_sub_pd(x1, rad)), lo2 = _mm_min_pd(lo2, _mm_sub_pd(x2, rad));
+    hi0 = _mm_max_pd(hi0, _mm_add_pd(x0, rad)), hi1 = _mm_max_pd(hi1, _mm_add_pd(x1, rad)), hi2 = _mm_max_pd(hi2, _mm_add_pd(x2, rad));
+  };
+  const std::size_t n = ids.size();
+  for (std::size_t k = 0; k + 1 < n; k += 2) place(ids[k].index(), ids[k + 1].index());
+  if (n % 2 == 1) place(ids[n - 1].index(), ids[n - 1].index());
+  const auto low = [](__m128d m) { return std::min(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m))); };
+  const auto high = [](__m128d m) { return std::max(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m))); };
+  bodyBoxes_[id.index()] = Aabb{Vec3(low(lo0), low(lo1), low(lo2)), Vec3(high(hi0), high(hi1), high(hi2))};
 }
 
 void World::updateDeformableBodyStates() {
