@@ -1,7 +1,9 @@
 #include "volpar/engine/world.hpp"
 
 #include <Eigen/SVD>
+#if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -919,10 +921,13 @@ void World::updateRigidParticles(BodyId id) {
   Vec3* const position = particles_.position.data();
   Vec3* const velocity = particles_.velocity.data();
   const std::vector<ParticleId>& ids = bodies_.info[id.index()].particles;
-  // two particles at a time, one in each lane of a pair of doubles: each lane does one particle's arithmetic
-  // in the order one particle alone does it (arm = r * local row by row, x = centre + arm, v + w x arm), so
-  // the result is that of a particle at a time, bit for bit; the box of the particles' spheres is the
-  // lanes' minima and maxima, which do not depend on the order
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  // each particle's arithmetic, in this order in both forms below: arm = r * local, the products of each row
+  // summed from the left in the first two rows and from the right in the third (the order Eigen's product
+  // took, kept so that trajectories stayed as they were), x = centre + arm, and v + w x arm. The box of the
+  // particles' spheres is their minima and maxima, which do not depend on the order
+#if defined(__SSE2__)
+  // (two particles at a time, one in each lane of a pair of doubles)
   const auto all = [](double x) { return _mm_set1_pd(x); };
   const __m128d r00 = all(r(0, 0)), r01 = all(r(0, 1)), r02 = all(r(0, 2));
   const __m128d r10 = all(r(1, 0)), r11 = all(r(1, 1)), r12 = all(r(1, 2));
@@ -930,9 +935,7 @@ void World::updateRigidParticles(BodyId id) {
   const __m128d c0 = all(s.position.x()), c1 = all(s.position.y()), c2 = all(s.position.z());
   const __m128d v0 = all(s.linearVelocity.x()), v1 = all(s.linearVelocity.y()), v2 = all(s.linearVelocity.z());
   const __m128d w0 = all(s.angularVelocity.x()), w1 = all(s.angularVelocity.y()), w2 = all(s.angularVelocity.z());
-  constexpr double kInf = std::numeric_limits<double>::infinity();
   __m128d lo0 = all(kInf), lo1 = lo0, lo2 = lo0, hi0 = all(-kInf), hi1 = hi0, hi2 = hi0;
-  // (Eigen's r * local sums the first two rows' products from the left, the third's from the right)
   const auto left = [](__m128d a, __m128d b, __m128d c, __m128d x, __m128d y, __m128d z) {
     return _mm_add_pd(_mm_add_pd(_mm_mul_pd(a, x), _mm_mul_pd(b, y)), _mm_mul_pd(c, z));
   };
@@ -961,6 +964,24 @@ void World::updateRigidParticles(BodyId id) {
   const auto low = [](__m128d m) { return std::min(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m))); };
   const auto high = [](__m128d m) { return std::max(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m))); };
   bodyBoxes_[id.index()] = Aabb{Vec3(low(lo0), low(lo1), low(lo2)), Vec3(high(hi0), high(hi1), high(hi2))};
+#else
+  const Vec3 c = s.position, v = s.linearVelocity, w = s.angularVelocity;
+  double lo0 = kInf, lo1 = kInf, lo2 = kInf, hi0 = -kInf, hi1 = -kInf, hi2 = -kInf;
+  for (const ParticleId p : ids) {
+    const std::size_t i = p.index();
+    const Vec3& l = local[i];
+    const double ax = (r(0, 0) * l.x() + r(0, 1) * l.y()) + r(0, 2) * l.z();
+    const double ay = (r(1, 0) * l.x() + r(1, 1) * l.y()) + r(1, 2) * l.z();
+    const double az = r(2, 0) * l.x() + (r(2, 1) * l.y() + r(2, 2) * l.z());
+    const Vec3 x(c.x() + ax, c.y() + ay, c.z() + az);
+    position[i] = x;
+    velocity[i] = Vec3(v.x() + (w.y() * az - w.z() * ay), v.y() + (w.z() * ax - w.x() * az), v.z() + (w.x() * ay - w.y() * ax));
+    const double rad = radius[i];
+    lo0 = std::min(lo0, x.x() - rad), lo1 = std::min(lo1, x.y() - rad), lo2 = std::min(lo2, x.z() - rad);
+    hi0 = std::max(hi0, x.x() + rad), hi1 = std::max(hi1, x.y() + rad), hi2 = std::max(hi2, x.z() + rad);
+  }
+  bodyBoxes_[id.index()] = Aabb{Vec3(lo0, lo1, lo2), Vec3(hi0, hi1, hi2)};
+#endif
 }
 
 void World::updateDeformableBodyStates() {
