@@ -66,6 +66,8 @@ class Broadphase {
   std::vector<Proxy> proxies_;  // by body index
   std::vector<BodyId> movingBodies_;  // ascending
   void rebuildPairs();
+  /// Appends the pairs of movedList_[begin, end) (a pair of two moved bodies from the smaller id only).
+  void queryMoved(std::size_t begin, std::size_t end, std::vector<BodyPair>& out) const;
 
   double margin_ = 0.05;
   std::size_t reinsertions_ = 0;
@@ -73,7 +75,6 @@ class Broadphase {
   std::vector<BodyPair> pairs_;                // persistent, sorted
   std::vector<BodyPair> fresh_, merged_;       // scratch
   std::vector<std::vector<BodyPair>> freshChunks_;  // scratch: the pairs found by each chunk of the queries
-  void queryMoved(std::size_t begin, std::size_t end, std::vector<BodyPair>& out) const;
   bool pairsDirty_ = true;
   std::vector<std::uint8_t> moved_;            // by body: fat box rebuilt since the last findPairs
   std::vector<BodyId> movedList_;
