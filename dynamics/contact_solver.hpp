@@ -59,6 +59,11 @@ struct SolverSettings {
   /// largest d >= 1 with 2^d leaves of at least this many bodies (at most 2^8 leaves). Part of what defines
   /// the trajectory; threads (and processes) take whole nodes, so more leaves let more of them work at once.
   int bodiesPerLeaf = 128;
+  /// Solve two batches of four rows at once in the eight lanes of AVX registers where the processor has AVX
+  /// (ContactSolver::wideLanesAvailable()); otherwise, or when false, one batch at a time in four lanes.
+  /// Each lane's arithmetic is the same either way, so the result is too, bit for bit: only the speed
+  /// differs.
+  bool wideLanes = true;
 };
 
 /// A body as the solver sees it.
@@ -140,6 +145,8 @@ class ContactSolver {
   }
   /// Islands whose normal impulses the last solve found exactly (see SolverSettings::heavyIslandRatio).
   [[nodiscard]] std::size_t heavyIslandsSolved() const { return heavyIslandsSolved_; }
+  /// Whether this processor runs the solver's eight-lane path (SolverSettings::wideLanes): AVX, on x86-64.
+  [[nodiscard]] static bool wideLanesAvailable();
   /// The impulse [N s] each point of the last solve applied to its B side (A got the opposite), world.
   [[nodiscard]] std::span<const Vec3> impulses() const { return impulses_; }
 

@@ -87,12 +87,13 @@ struct Solved {
 };
 
 inline Solved solveLattice(int threads, int bodiesPerLeaf, int iterations, ProcessGroup* exchange = nullptr,
-                           bool heavyStack = false) {
+                           bool heavyStack = false, bool wideLanes = true) {
   Lattice l = makeLattice(heavyStack);
   ContactSolver solver;
   SolverSettings s;
   s.bodiesPerLeaf = bodiesPerLeaf;
   s.iterations = iterations;
+  s.wideLanes = wideLanes;
   solver.setSettings(s);
   solver.setProcesses(exchange);
   ThreadPool pool(threads);
