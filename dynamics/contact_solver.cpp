@@ -389,23 +389,22 @@ VOLPAR_ALWAYS_INLINE void velocityBatch(Batch& b, Motion& m) {
 // where the processor has it (ContactSolver::wideLanesAvailable()).
 #define VOLPAR_WIDE [[gnu::target("avx"), gnu::always_inline]] inline
 
-VOLPAR_WIDE __m256 join(const F4& lo, const F4& hi) {
+/// Two aligned fours of floats (F4 lanes, or V4 rows) as one register, lo in the low half.
+template <class Four>
+VOLPAR_WIDE __m256 join(const Four& lo, const Four& hi) {
   return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(lo.data())), _mm_load_ps(hi.data()), 1);
 }
 VOLPAR_WIDE void split(__m256 x, F4& lo, F4& hi) {
   _mm_store_ps(lo.data(), _mm256_castps256_ps128(x));
   _mm_store_ps(hi.data(), _mm256_extractf128_ps(x, 1));
 }
-VOLPAR_WIDE __m256 joinRows(const V4& lo, const V4& hi) {
-  return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(lo.data())), _mm_load_ps(hi.data()), 1);
-}
 
 /// gather() of two batches' bodies at once: two 4 x 4 transposes side by side (AVX shuffles work within each
 /// half).
 VOLPAR_WIDE void gatherWide(const V4* base, const std::array<std::uint32_t, 4>& lo, const std::array<std::uint32_t, 4>& hi,
                             __m256& x, __m256& y, __m256& z) {
-  const __m256 r0 = joinRows(base[lo[0]], base[hi[0]]), r1 = joinRows(base[lo[1]], base[hi[1]]);
-  const __m256 r2 = joinRows(base[lo[2]], base[hi[2]]), r3 = joinRows(base[lo[3]], base[hi[3]]);
+  const __m256 r0 = join(base[lo[0]], base[hi[0]]), r1 = join(base[lo[1]], base[hi[1]]);
+  const __m256 r2 = join(base[lo[2]], base[hi[2]]), r3 = join(base[lo[3]], base[hi[3]]);
   const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1);
   const __m256 t2 = _mm256_unpacklo_ps(r2, r3), t3 = _mm256_unpackhi_ps(r2, r3);
   x = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0));

@@ -12,19 +12,9 @@
 namespace volpar {
 namespace {
 
+using test::expectSameSolve;
 using test::Solved;
 using test::solveLattice;
-
-void expectSame(const Solved& wide, const Solved& narrow, const char* what) {
-  ASSERT_EQ(wide.bodies.size(), narrow.bodies.size());
-  for (std::size_t i = 0; i < narrow.bodies.size(); ++i) {
-    ASSERT_TRUE(wide.bodies[i].v == narrow.bodies[i].v) << what << ", body " << i;
-    ASSERT_TRUE(wide.bodies[i].w == narrow.bodies[i].w) << what << ", body " << i;
-    ASSERT_TRUE(wide.bodies[i].pv == narrow.bodies[i].pv) << what << ", body " << i;
-    ASSERT_TRUE(wide.bodies[i].pw == narrow.bodies[i].pw) << what << ", body " << i;
-  }
-  ASSERT_TRUE(wide.impulses == narrow.impulses) << what;
-}
 
 TEST(ContactSolverLanes, EightLanesGiveTheSameResultAsFour) {
   if (!ContactSolver::wideLanesAvailable()) GTEST_SKIP() << "this processor has no AVX: only four lanes run";
@@ -43,7 +33,7 @@ TEST(ContactSolverLanes, EightLanesGiveTheSameResultAsFour) {
         if (normal > 0.0 && friction > 0.999 * 0.5 * normal) ++sliding;
       }
       EXPECT_GT(sliding, 0u);
-      expectSame(wide, narrow, heavy ? "with the heavy island" : "lattice");
+      expectSameSolve(wide, narrow, heavy ? "with the heavy island" : "lattice");
     }
   }
 }

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <string>
 #include <vector>
 
 #include "volpar/dynamics/contact_solver.hpp"
@@ -13,6 +14,7 @@
 namespace volpar {
 namespace {
 
+using test::expectSameSolve;
 using test::Lattice;
 using test::kNx;
 using test::kNy;
@@ -28,14 +30,8 @@ TEST(ContactSolverTree, DeepTreeGivesTheSameResultOnAnyNumberOfThreads) {
   const Solved one = solveLattice(1, 4, 10);
   for (const int threads : {2, 3, 4}) {
     const Solved many = solveLattice(threads, 4, 10);
-    ASSERT_EQ(many.bodies.size(), one.bodies.size());
-    for (std::size_t i = 0; i < one.bodies.size(); ++i) {
-      ASSERT_TRUE(many.bodies[i].v == one.bodies[i].v) << threads << " threads, body " << i;
-      ASSERT_TRUE(many.bodies[i].w == one.bodies[i].w) << threads << " threads, body " << i;
-      ASSERT_TRUE(many.bodies[i].pv == one.bodies[i].pv) << threads << " threads, body " << i;
-      ASSERT_TRUE(many.bodies[i].pw == one.bodies[i].pw) << threads << " threads, body " << i;
-    }
-    ASSERT_TRUE(many.impulses == one.impulses) << threads << " threads";
+    expectSameSolve(many, one, std::to_string(threads) + " threads");
+    if (::testing::Test::HasFatalFailure()) return;
   }
 }
 

@@ -1,8 +1,11 @@
 #pragma once
 // A contact problem for the solver's tests: a lattice of spheres, every one touching its neighbours.
 
+#include <gtest/gtest.h>
+
 #include <cstdint>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "volpar/dynamics/contact_solver.hpp"
@@ -85,6 +88,18 @@ struct Solved {
   std::vector<Vec3> impulses;
   std::size_t heavyIslands = 0;  // islands solved exactly, over the five solves
 };
+
+/// Expects two solves' velocities, pseudo velocities and impulses to be the same bit for bit.
+inline void expectSameSolve(const Solved& got, const Solved& want, const std::string& what) {
+  ASSERT_EQ(got.bodies.size(), want.bodies.size()) << what;
+  for (std::size_t i = 0; i < want.bodies.size(); ++i) {
+    ASSERT_TRUE(got.bodies[i].v == want.bodies[i].v) << what << ", body " << i;
+    ASSERT_TRUE(got.bodies[i].w == want.bodies[i].w) << what << ", body " << i;
+    ASSERT_TRUE(got.bodies[i].pv == want.bodies[i].pv) << what << ", body " << i;
+    ASSERT_TRUE(got.bodies[i].pw == want.bodies[i].pw) << what << ", body " << i;
+  }
+  ASSERT_TRUE(got.impulses == want.impulses) << what;
+}
 
 inline Solved solveLattice(int threads, int bodiesPerLeaf, int iterations, ProcessGroup* exchange = nullptr,
                            bool heavyStack = false, bool wideLanes = true) {
