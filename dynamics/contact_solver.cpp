@@ -680,6 +680,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       rankStart_.resize(partCount());
       started_.assign(partCount(), 0);
       normalSum_.assign(partCount(), 0.0);
+      partHeavy_.assign(partCount(), 0);
       for (auto& m : moved_) m.assign(partCount(), 0);
     }
     barrier_.wait();
@@ -741,6 +742,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     std::uint64_t* const keys = keys_.data() + posBase_[part];
     Cached* const next = nextCache_.data() + posBase_[part];
     std::size_t started = 0;
+    bool heavy = false;  // (whether a row joins a heavy pair, for solveHeavyIslands(), while the masses are at hand)
     constexpr std::size_t kAhead = 2;  // batches whose input points are fetched ahead of their use
     const auto fetch = [&](std::size_t j) {
       for (std::size_t lane = 0; lane < 4; ++lane) {
@@ -777,6 +779,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
         const SolverBody* sb = in.b == kFixed ? nullptr : &bodies[in.b];
         b.invMassA[l] = sa ? static_cast<float>(sa->invMass) : 0.0f;
         b.invMassB[l] = sb ? static_cast<float>(sb->invMass) : 0.0f;
+        heavy = heavy || heavyPair(b.invMassA[l], b.invMassB[l], settings_.heavyIslandRatio);
         Vec3 t1, t2;
         tangents(in.normal, t1, t2);
         b.massN[l] = prepareAxis(sa, sb, in.rA, in.rB, in.normal, b.n, l);
@@ -803,6 +806,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       }
       if (warm) started += warmStart(part, j);
     }
+    partHeavy_[part] = heavy ? 1 : 0;
     return started;
   };
 

@@ -320,6 +320,7 @@ class ContactSolver {
   // solveHeavyIslands()'s scratch: per slot its island (union-find); the rows (part, batch, lane) grouped by
   // island; one island's dense problem
   std::vector<std::uint32_t> islandOf_;
+  std::vector<std::uint8_t> partHeavy_;  // per part: whether one of its rows joins a heavy pair (heavyPair())
   std::vector<std::uint64_t> islandRows_;
   std::vector<std::uint32_t> islandStart_, islandFill_;
   std::vector<std::uint8_t> islandHeavy_;

@@ -82,9 +82,8 @@ void ContactSolver::solveHeavyIslands() {
   const auto heavyPairAt = [&](const Batch& b, std::size_t l) {
     return heavyPair(b.invMassA[static_cast<int>(l)], b.invMassB[static_cast<int>(l)], ratio);
   };
-  bool any = false;
-  forEachRow([&](std::size_t, std::size_t, std::size_t l, const Batch& b) { any = any || heavyPairAt(b, l); });
-  if (!any) return;
+  // (whether any row joins a heavy pair: each part's preparation found out, while its rows were at hand)
+  if (std::none_of(partHeavy_.begin(), partHeavy_.end(), [](std::uint8_t h) { return h != 0; })) return;
 
   // islands: the slots joined by rows between two bodies (the fixed sides join nothing)
   islandOf_.resize(slots_);

@@ -362,27 +362,47 @@ std::uint32_t World::solverIndex(ParticleId p) {
   std::uint32_t& slot = *found;
   if (slot != ContactPointInput::kFixed) return slot;
   const BodyId b = particles_.body[p.index()];
-  const BodyInfo& info = bodies_.info[b.index()];
-  slot = static_cast<std::uint32_t>(solverBodies_.size());
-  SolverBody sb;
-  if (info.kind == BodyKind::Rigid) {
-    const BodyState& s = bodies_.state[b.index()];
-    sb.position = s.position;
-    sb.v = s.linearVelocity;
-    sb.w = s.angularVelocity;
-    sb.invMass = s.invMass;
-    sb.invInertia = s.invInertiaWorld;
-    solverBodyOwner_.push_back(b);
-    solverParticleOwner_.emplace_back();
-  } else {
-    sb.position = particles_.position[p.index()];
-    sb.v = particles_.velocity[p.index()];
-    sb.invMass = particles_.invMass[p.index()];
-    solverBodyOwner_.emplace_back();
-    solverParticleOwner_.push_back(p);
-  }
-  solverBodies_.push_back(sb);
+  if (bodies_.info[b.index()].kind == BodyKind::Rigid) return rigidSolverIndex(b);
+  slot = static_cast<std::uint32_t>(solverBodyOwner_.size());
+  solverBodyOwner_.emplace_back();
+  solverParticleOwner_.push_back(p);
   return slot;
+}
+
+std::uint32_t World::rigidSolverIndex(BodyId b) {
+  std::uint32_t& slot = bodySolverIndex_[b.index()];
+  if (slot != ContactPointInput::kFixed) return slot;
+  slot = static_cast<std::uint32_t>(solverBodyOwner_.size());
+  solverBodyOwner_.push_back(b);
+  solverParticleOwner_.emplace_back();
+  return slot;
+}
+
+void World::makeSolverBodies() {
+  solverBodies_.resize(solverBodyOwner_.size());
+  const auto make = [&](int, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) {
+      SolverBody& sb = solverBodies_[i];
+      if (const BodyId b = solverBodyOwner_[i]; b.valid()) {
+        const BodyState& s = bodies_.state[b.index()];
+        sb.position = s.position;
+        sb.v = s.linearVelocity;
+        sb.w = s.angularVelocity;
+        sb.invMass = s.invMass;
+        sb.invInertia = s.invInertiaWorld;
+      } else {
+        const ParticleId p = solverParticleOwner_[i];
+        sb.position = particles_.position[p.index()];
+        sb.v = particles_.velocity[p.index()];
+        sb.w = Vec3::Zero();
+        sb.invMass = particles_.invMass[p.index()];
+        sb.invInertia = Mat3::Zero();
+      }
+      sb.pv = sb.pw = Vec3::Zero();
+    }
+  };
+  if (pool_ && pool_->worthSharing(solverBodies_.size(), 256)) pool_->run(solverBodies_.size(), make);
+  else make(0, 0, solverBodies_.size());
 }
 
 namespace {
@@ -455,10 +475,9 @@ void World::buildContactPoints() {
   // patches; breakable bodies, whose rod loads follow where the contacts are), or a rigid patch reduced
   // to a manifold of at most four points
   enum : std::uint8_t { kRaw, kAll, kReduced, kNone };
-  pointMode_.resize(np);
+  patchPoints_.resize(np);
   pointFirst_.resize(np + 1);
   keptContacts_.resize(ps.contacts.size());
-  keptCount_.resize(np);
   // a patch's side as its points see it (looked up once per patch): a rigid body's motion, shared by all
   // its particles; a deformable body's particles, each on its own; or the fixed world
   struct Side {
@@ -544,15 +563,16 @@ void World::buildContactPoints() {
       const bool rigidPair = sideA.kind != BodyKind::Deformable && !breakable(patch.a) &&
                              (!patch.b.valid() || (sideB.kind != BodyKind::Deformable && !breakable(patch.b)));
       if (mode == kAll && rigidPair && count > 4) mode = kReduced;
-      pointMode_[j] = mode;
-      keptCount_[j] = count;
+      patchPoints_[j] = {patch.a, patch.b, count, mode, sideA.kind, sideB.kind};
     }
   };
   if (pool_ && pool_->worthSharing(np, 512)) pool_->runChunks(np, select);
   else select(0, 0, np);
-  // (2) the points' places, and the solver bodies in the order their first points name them (the points
-  // of a patch of two rigid bodies all name the same two); with processes, each point's solver bodies
-  // (a rigid body's points share its slot; a deformable body's particles have a slot each)
+  // (2) the points' places, and the solver bodies named in the order their first points name them (the
+  // points of a patch of two rigid bodies all name the same two); with processes, each point's solver
+  // bodies (a rigid body's points share its slot; a deformable body's particles have a slot each). One
+  // thread walks the patches here, so it reads what select() wrote for each in 16 bytes, and leaves the
+  // solver bodies' contents to makeSolverBodies(), which the workers share
   const auto slotOf = [&](BodyId b, BodyKind k, ParticleId p) {
     switch (k) {
       case BodyKind::Rigid: return bodySolverIndex_[b.index()];
@@ -564,27 +584,34 @@ void World::buildContactPoints() {
   pointBodies_.clear();
   pointFirst_[0] = 0;
   for (std::size_t j = 0; j < np; ++j) {
-    const std::uint8_t mode = pointMode_[j];
-    pointFirst_[j + 1] = pointFirst_[j] + (mode == kNone ? 0 : mode == kReduced ? 4 : keptCount_[j]);
-    if (mode == kNone) continue;
+    const PatchPoints& pp = patchPoints_[j];
+    pointFirst_[j + 1] = pointFirst_[j] + (pp.mode == kNone ? 0 : pp.mode == kReduced ? 4 : pp.kept);
+    if (pp.mode == kNone) continue;
+    const BodyKind kindA = pp.kindA, kindB = pp.kindB;
+    if (kindA != BodyKind::Deformable && kindB != BodyKind::Deformable) {
+      // (every contact of the patch names the patch's two bodies: its particle a is of body a)
+      if (kindA == BodyKind::Rigid) rigidSolverIndex(pp.a);
+      if (kindB == BodyKind::Rigid) rigidSolverIndex(pp.b);
+      if (!planned) continue;
+    }
     const ContactPatch& patch = ps.patches[j];
     const std::uint32_t* kept = keptContacts_.data() + patch.first;
-    const bool deformable = kind(patch.a) == BodyKind::Deformable || (patch.b.valid() && kind(patch.b) == BodyKind::Deformable);
-    const std::uint32_t named = deformable ? keptCount_[j] : 1;
-    for (std::uint32_t k = 0; k < named; ++k) {
-      const ParticleContact& c = cs.contacts[kept[k]];
-      solverIndex(c.a);
-      if (c.b.valid()) solverIndex(c.b);
+    if (kindA == BodyKind::Deformable || kindB == BodyKind::Deformable) {
+      for (std::uint32_t k = 0; k < pp.kept; ++k) {
+        const ParticleContact& c = cs.contacts[kept[k]];
+        solverIndex(c.a);
+        if (c.b.valid()) solverIndex(c.b);
+      }
     }
     if (!planned) continue;
     // (a reduced patch's points are four of its kept contacts, between the same two rigid bodies)
-    const BodyKind kindA = kind(patch.a), kindB = patch.b.valid() ? kind(patch.b) : BodyKind::Static;
     for (std::uint32_t k = 0; k < pointFirst_[j + 1] - pointFirst_[j]; ++k) {
       const ParticleContact& c = cs.contacts[kept[k]];
       pointBodies_.emplace_back(slotOf(patch.a, kindA, c.a),
                                 c.b.valid() ? slotOf(patch.b, kindB, c.b) : ContactPointInput::kFixed);
     }
   }
+  makeSolverBodies();
   contactPoints_.resize(pointFirst_[np]);
   pointParticles_.resize(pointFirst_[np]);
   // with processes, the solver plans its division first: the points of other processes' nodes are not read
@@ -607,10 +634,11 @@ void World::buildContactPoints() {
       return side.kind == BodyKind::Rigid ? Vec3(point - side.centre) : Vec3::Zero();
     };
     for (std::size_t j = begin; j < end; ++j) {
-      if (pointMode_[j] == kNone) continue;
+      const std::uint8_t mode = patchPoints_[j].mode;
+      if (mode == kNone) continue;
       const ContactPatch& patch = ps.patches[j];
       const std::uint32_t* kept = keptContacts_.data() + patch.first;
-      const std::uint32_t count = keptCount_[j];
+      const std::uint32_t count = patchPoints_[j].kept;
       std::uint32_t out = pointFirst_[j];
       if (!read.empty() && std::none_of(read.begin() + out, read.begin() + pointFirst_[j + 1], [](std::uint8_t r) { return r != 0; })) {
         for (std::uint32_t k = 0; out < pointFirst_[j + 1]; ++k) pointParticles_[out++] = {cs.contacts[kept[k]].a, cs.contacts[kept[k]].b};
@@ -647,7 +675,7 @@ void World::buildContactPoints() {
         in.key = (static_cast<std::uint64_t>(c.a.value) << 32) |
                  (c.b.valid() ? c.b.value : (0x80000000u | static_cast<std::uint32_t>(c.plane.value)));
       };
-      if (pointMode_[j] == kRaw) {
+      if (mode == kRaw) {
         for (std::uint32_t k = 0; k < count; ++k)
           addPoint(cs.contacts[kept[k]], cs.contacts[kept[k]].normal, cs.contacts[kept[k]].depth, Vec3::Zero());
         continue;
@@ -659,7 +687,7 @@ void World::buildContactPoints() {
       // twisting as the whole face does. (A deformable body's particles are point masses: their friction
       // acts through their centres)
       const bool turns = sideA.kind != BodyKind::Deformable && sideB.kind != BodyKind::Deformable;
-      const bool reduce = pointMode_[j] == kReduced;
+      const bool reduce = mode == kReduced;
       const std::array<std::uint32_t, 4> reduced = reduce ? manifoldOfFour(cs, kept, count, ps.depthAlongNormal)
                                                           : std::array<std::uint32_t, 4>{};
       Vec3 centre = Vec3::Zero();

@@ -208,8 +208,13 @@ class World {
   /// The solver-body slot a particle's contacts use (its rigid body's, or its own for a deformable
   /// body's); null for static bodies. kFixed in it: not yet a solver body this step.
   std::uint32_t* solverSlot(ParticleId p);
-  /// The particle's solver body, made on first use this step (kFixed for static bodies).
+  /// The particle's solver body, named on first use this step (kFixed for static bodies); its contents are
+  /// made by makeSolverBodies().
   std::uint32_t solverIndex(ParticleId p);
+  /// A rigid body's solver body, named on first use this step.
+  std::uint32_t rigidSolverIndex(BodyId b);
+  /// The contents of the solver bodies named this step, from their owners' state.
+  void makeSolverBodies();
   void integratePositions();
   void applyBreakage();
   void splitBody(BodyId parent, std::span<const std::uint32_t> component, std::size_t components);
@@ -267,10 +272,17 @@ class World {
   std::vector<ParticleId> solverParticleOwner_;     // per solver body: its particle (invalid: a rigid body)
   std::vector<Vec3> particleShift_;                 // [P] pseudo displacement of deformable particles
   std::vector<DeformableContact> deformableContacts_;
-  std::vector<std::uint8_t> pointMode_;             // per patch: how it becomes contact points
+  /// How a patch becomes contact points, as buildContactPoints() decides it for every patch at once (compact:
+  /// the pass that names the solver bodies reads these alone, patch after patch)
+  struct PatchPoints {
+    BodyId a, b;               ///< the patch's bodies
+    std::uint32_t kept = 0;    ///< how many of its contacts become points (keptContacts_)
+    std::uint8_t mode = 0;     ///< how they do
+    BodyKind kindA = BodyKind::Static, kindB = BodyKind::Static;  ///< its sides (a plane's: static)
+  };
+  std::vector<PatchPoints> patchPoints_;            // per patch
   std::vector<std::uint32_t> pointFirst_;           // per patch: its first contact point (and the end)
   std::vector<std::uint32_t> keptContacts_;         // as PatchSet::contacts: each patch's contacts that become points
-  std::vector<std::uint32_t> keptCount_;            // per patch: how many
   /// per worker, per particle: whether it touches in the patch being made into points (0 between patches)
   std::vector<std::vector<std::uint8_t>> touchingParticle_;
   std::vector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles
