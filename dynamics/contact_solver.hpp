@@ -264,6 +264,7 @@ class ContactSolver {
   std::vector<Vec3> dp_, dl_;
   std::vector<std::size_t> started_;  // per part: rows warm started
   std::vector<double> normalSum_;     // per part: the normal impulses
+  std::vector<std::uint8_t> partHeavy_;  // per part: whether one of its rows joins a heavy pair (heavyPair())
   std::array<std::vector<std::uint8_t>, 2> moved_;  // per part: whether a position sweep moved (two sweeps' worth)
   ProcessGroup* processes_ = nullptr;
   std::vector<std::size_t> shareOffset_, shareCount_;  // (the shares' ranges in bytes, per process)
@@ -320,7 +321,6 @@ class ContactSolver {
   // solveHeavyIslands()'s scratch: per slot its island (union-find); the rows (part, batch, lane) grouped by
   // island; one island's dense problem
   std::vector<std::uint32_t> islandOf_;
-  std::vector<std::uint8_t> partHeavy_;  // per part: whether one of its rows joins a heavy pair (heavyPair())
   std::vector<std::uint64_t> islandRows_;
   std::vector<std::uint32_t> islandStart_, islandFill_;
   std::vector<std::uint8_t> islandHeavy_;

@@ -588,7 +588,8 @@ void World::buildContactPoints() {
     pointFirst_[j + 1] = pointFirst_[j] + (pp.mode == kNone ? 0 : pp.mode == kReduced ? 4 : pp.kept);
     if (pp.mode == kNone) continue;
     const BodyKind kindA = pp.kindA, kindB = pp.kindB;
-    if (kindA != BodyKind::Deformable && kindB != BodyKind::Deformable) {
+    const bool deformable = kindA == BodyKind::Deformable || kindB == BodyKind::Deformable;
+    if (!deformable) {
       // (every contact of the patch names the patch's two bodies: its particle a is of body a)
       if (kindA == BodyKind::Rigid) rigidSolverIndex(pp.a);
       if (kindB == BodyKind::Rigid) rigidSolverIndex(pp.b);
@@ -596,7 +597,7 @@ void World::buildContactPoints() {
     }
     const ContactPatch& patch = ps.patches[j];
     const std::uint32_t* kept = keptContacts_.data() + patch.first;
-    if (kindA == BodyKind::Deformable || kindB == BodyKind::Deformable) {
+    if (deformable) {
       for (std::uint32_t k = 0; k < pp.kept; ++k) {
         const ParticleContact& c = cs.contacts[kept[k]];
         solverIndex(c.a);
@@ -757,7 +758,7 @@ void World::solveContacts() {
     if (b.valid()) bodySolverIndex_[b.index()] = ContactPointInput::kFixed;
   for (const ParticleId p : solverParticleOwner_)
     if (p.valid()) particleSolverIndex_[p.index()] = ContactPointInput::kFixed;
-  solverBodies_.clear();
+  // (solverBodies_ keeps its entries: makeSolverBodies() sizes it and writes every field of every one)
   solverBodyOwner_.clear();
   solverParticleOwner_.clear();
   bodySolverIndex_.resize(bodies_.size(), ContactPointInput::kFixed);
