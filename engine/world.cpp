@@ -484,10 +484,10 @@ void World::buildContactPoints() {
     BodyKind kind = BodyKind::Static;
     Vec3 v = Vec3::Zero(), w = Vec3::Zero(), centre = Vec3::Zero();
   };
-  const auto sideOf = [&](BodyId b) {
+  const auto sideOf = [&](BodyId b, BodyKind k) {
     Side side;
     if (!b.valid()) return side;
-    side.kind = kind(b);
+    side.kind = k;
     if (side.kind == BodyKind::Rigid) {
       const BodyState& s = bodies_.state[b.index()];
       side.v = s.linearVelocity;
@@ -510,7 +510,8 @@ void World::buildContactPoints() {
     };
     for (std::size_t j = begin; j < end; ++j) {
       const ContactPatch& patch = ps.patches[j];
-      const Side sideA = sideOf(patch.a), sideB = sideOf(patch.b);
+      const Side sideA = patch.a.valid() ? sideOf(patch.a, kind(patch.a)) : Side{},
+                 sideB = patch.b.valid() ? sideOf(patch.b, kind(patch.b)) : Side{};
       const bool fixedA = sideA.kind == BodyKind::Static, fixedB = sideB.kind == BodyKind::Static;
       std::uint8_t mode = kAll;
       if (fixedA && fixedB) mode = kNone;
@@ -647,10 +648,10 @@ void World::buildContactPoints() {
       }
       // (the contacts of a patch join the same two bodies, or a body and a plane)
       const ParticleContact& first = cs.contacts[kept[0]];
-      const auto [ma, mb] = contactMaterials(first.a, first.b, first.plane);
+      const auto [ma, mb] = contactMaterials(patch.a, patch.b, patch.plane);
       const double friction = std::sqrt(ma->friction * mb->friction);
       const double restitution = std::max(ma->restitution, mb->restitution);
-      const Side sideA = sideOf(patch.a), sideB = sideOf(patch.b);
+      const Side sideA = sideOf(patch.a, patchPoints_[j].kindA), sideB = sideOf(patch.b, patchPoints_[j].kindB);
       // a deformable particle is a point mass: a rigid body it touches takes the impulse on the line through
       // the particle's centre (equal and opposite on one line, so the pair keeps its angular momentum), and
       // the particle's overlap is left to the substeps' contacts (a position correction here would move it
@@ -752,6 +753,11 @@ std::pair<const Material*, const Material*> World::contactMaterials(ParticleId a
   return {&ma, &materials_[mb.index()]};
 }
 
+std::pair<const Material*, const Material*> World::contactMaterials(BodyId a, BodyId b, PlaneId plane) const {
+  const MaterialId mb = plane.valid() ? planes_[plane.index()].material : bodies_.info[b.index()].material;
+  return {&materials_[bodies_.info[a.index()].material.index()], &materials_[mb.index()]};
+}
+
 void World::solveContacts() {
   // solver bodies of this step: only those in contact
   for (const BodyId b : solverBodyOwner_)
@@ -815,8 +821,7 @@ void World::resistRolling() {
   for (std::size_t j = 0; j < ps.patches.size(); ++j) {
     if (pointFirst_[j] == pointFirst_[j + 1]) continue;
     const ContactPatch& patch = ps.patches[j];
-    const ParticleContact& first = contacts_.contacts[ps.contacts[patch.first]];
-    const auto [ma, mb] = contactMaterials(first.a, first.b, first.plane);
+    const auto [ma, mb] = contactMaterials(patch.a, patch.b, patch.plane);
     const double mu = std::max(ma->rollingResistance, mb->rollingResistance);
     if (mu <= 0.0) continue;
     const auto kindOf = [&](BodyId b) { return b.valid() ? bodies_.info[b.index()].kind : BodyKind::Static; };

@@ -204,6 +204,9 @@ class World {
   /// The materials meeting at a contact: particle a's body's and particle b's body's (or the plane's).
   [[nodiscard]] std::pair<const Material*, const Material*> contactMaterials(ParticleId a, ParticleId b,
                                                                              PlaneId plane) const;
+  /// The same from the bodies on a patch's two sides (body b invalid: the plane's): a patch's contacts all
+  /// join particles of those two bodies, so this skips looking up each particle's body.
+  [[nodiscard]] std::pair<const Material*, const Material*> contactMaterials(BodyId a, BodyId b, PlaneId plane) const;
   void buildContactPoints();
   /// The solver-body slot a particle's contacts use (its rigid body's, or its own for a deformable
   /// body's); null for static bodies. kFixed in it: not yet a solver body this step.
