@@ -641,9 +641,8 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
                           : 1;
   barrier_.reset(workers);
   if (!planned) ab_.resize(np);
-  // calls f(part) for the nodes of a level that `worker` of this process takes: of all the level's nodes
-  // (forShare: work every process does) or of the process's own (forOwn: the iterations, which the
-  // processes divide)
+  // calls f(part) for the nodes of a level that `worker` of this process takes, of all the level's nodes
+  // (forShare: work every process does, such as the set-up, in shares fixed by the worker's number)
   const int ranks = processes_ ? processes_->size() : 1, me = processes_ ? processes_->rank() : 0;
   const auto forRange = [&](int worker, int level, std::size_t first, std::size_t end, const auto& f) {
     const std::size_t n = end - first;
@@ -653,9 +652,34 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   const auto forShare = [&](int worker, int level, const auto& f) {
     forRange(worker, level, 0, std::size_t{1} << level, f);
   };
-  const auto forOwn = [&](int worker, int level, const auto& f) {
-    const std::size_t n = std::size_t{1} << level;
-    forRange(worker, level, firstShare(me, ranks, n), firstShare(me + 1, ranks, n), f);
+  // The sweeps over a level's nodes (preparing them, the iterations) go by claims: each worker takes the
+  // nodes of its own range in turn, then any of the others' that no worker has taken yet, from the far end.
+  // Threads that run at one speed keep their own nodes, sweep after sweep (and their batches in their
+  // caches); a thread that runs slower (another process on its core, an uneven processor) hands its last
+  // nodes to one that is done. Which thread solves a node never changes its arithmetic, so the result is
+  // the same. A node is claimed by writing the sweep's number into its entry of claims_: every worker
+  // numbers the sweeps alike, from phase_ (so no entry needs clearing between sweeps or solves).
+  if (phase_ > 0xf0000000u) {
+    for (std::atomic<std::uint32_t>& c : claims_->part) c.store(0, std::memory_order_relaxed);
+    phase_ = 0;
+  }
+  claims_->takenOver.store(0, std::memory_order_relaxed);
+  const std::uint32_t firstPhase = phase_;
+  std::uint32_t lastPhase = firstPhase;
+  const auto forClaimed = [&](int worker, std::uint32_t& phase, int level, std::size_t first, std::size_t end, const auto& f) {
+    ++phase;
+    const std::size_t n = end - first;
+    const std::size_t mineBegin = first + firstShare(worker, workers, n), mineEnd = first + firstShare(worker + 1, workers, n);
+    const auto claim = [&](std::size_t k) {
+      const std::size_t part = levelStart(level) + k;
+      if (claims_->part[part].exchange(phase, std::memory_order_relaxed) == phase) return false;
+      f(part);
+      return true;
+    };
+    for (std::size_t k = mineBegin; k < mineEnd; ++k) claim(k);
+    if (workers == 1) return;
+    for (std::size_t k = end; k-- > first;)
+      if ((k < mineBegin || k >= mineEnd) && claim(k)) claims_->takenOver.fetch_add(1, std::memory_order_relaxed);
   };
   const auto setUp = [&](int worker) {
     // the points' bodies, compact (each thread reads its share of the points once; the ordering then
@@ -852,14 +876,19 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   // then the nodes a level up, and so on to the root
   const auto iterate = [&](int worker) {
     setUp(worker);
+    std::uint32_t phase = firstPhase;  // (this worker's count of claimed sweeps: the same on every worker)
+    const auto forOwnClaimed = [&](int l, const auto& f) {
+      const std::size_t n = std::size_t{1} << l;
+      forClaimed(worker, phase, l, firstShare(me, ranks, n), firstShare(me + 1, ranks, n), f);
+    };
     // (with processes: after each level, the velocities of the bodies other processes' nodes touch too, as
     // the level's nodes left them, from worker 0 while the others wait)
     const auto handsOver = [&](int l) { return ranks > 1 && !boundary_[static_cast<std::size_t>(l)].index.empty(); };
     // the nodes whose preparation and warm start this worker does: with processes its process's own, unless
     // the exact solve of heavy islands needs every part's rows on every process
     const auto forPrepared = [&](int l, const auto& f) {
-      if (divideSetUp_) forOwn(worker, l, f);
-      else forShare(worker, l, f);
+      if (divideSetUp_) forOwnClaimed(l, f);
+      else forClaimed(worker, phase, l, 0, std::size_t{1} << l, f);
     };
     // every part prepared at once (the leaves warm started as they go, since they share no body); the other
     // nodes warm started after, level by level, so every body's velocity takes the warm-starting impulses in
@@ -896,7 +925,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     for (int it = 0; it < settings_.iterations; ++it) {
       const bool last = it + 1 == settings_.iterations;
       for (int l = depth_; l >= 0; --l) {
-        forOwn(worker, l, [&](std::size_t part) {
+        forOwnClaimed(l, [&](std::size_t part) {
           if (last) velocityPart(part, [&](std::size_t j) { normalSum_[part] += finish(part, j); });
           else velocityPart(part, none);
         });
@@ -913,7 +942,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     }
     if (settings_.iterations <= 0) {
       for (int l = depth_; l >= 0; --l) {
-        forOwn(worker, l, [&](std::size_t part) {
+        forOwnClaimed(l, [&](std::size_t part) {
           for (std::size_t j = 0; j < batches_[part].batches.size(); ++j) normalSum_[part] += finish(part, j);
         });
         barrier_.wait();
@@ -929,7 +958,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     for (int it = 0; it < settings_.positionIterations; ++it) {
       std::vector<std::uint8_t>& m = moved_[static_cast<std::size_t>(it & 1)];
       for (int l = depth_; l >= 0; --l) {
-        forOwn(worker, l, [&](std::size_t part) { m[part] = positionPart(part) ? 1 : 0; });
+        forOwnClaimed(l, [&](std::size_t part) { m[part] = positionPart(part) ? 1 : 0; });
         barrier_.wait();
         if (handsOver(l)) {
           if (worker == 0) handOver(boundary_[static_cast<std::size_t>(l)], pv_, pw_);
@@ -976,6 +1005,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     });
     // (this step's keys for the next step's warm start)
     if (worker == workers - 1) remember();
+    if (worker == 0) lastPhase = phase;
   };
   if (workers > 1) {
     // one range of nodes per worker, whatever the pool's size
@@ -985,6 +1015,7 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   } else {
     iterate(0);
   }
+  phase_ = lastPhase;
   warmStarted_ = 0;
   totalNormalImpulse_ = 0.0;
   for (std::size_t part = 0; part < partCount(); ++part) {

@@ -21,9 +21,11 @@
 // it crosses. In every iteration the leaves' points are solved first, then those of the nodes one level up,
 // and so on to the root's. The nodes of one level share no body, so threads can solve them at once (a spin
 // barrier between the levels) with exactly the arithmetic of one thread: the result does not depend on the
-// thread count, nor on which thread (or, across machines, which process) solves which node.
+// thread count, nor on which thread (or, across machines, which process) solves which node. So a thread
+// that is done with its share of a level takes over the nodes a slower one has not started.
 
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -143,6 +145,9 @@ class ContactSolver {
     const std::size_t first = levelStart(level), end = first + (std::size_t{1} << level);
     return parts_[end] - parts_[first];
   }
+  /// Sweeps over a node in the last solve that a thread took over from the thread whose share it was (one
+  /// that ran slower; see solve()): 0 on one thread, and where the threads kept pace.
+  [[nodiscard]] std::size_t nodesTakenOver() const { return claims_->takenOver.load(std::memory_order_relaxed); }
   /// Islands whose normal impulses the last solve found exactly (see SolverSettings::heavyIslandRatio).
   [[nodiscard]] std::size_t heavyIslandsSolved() const { return heavyIslandsSolved_; }
   /// Whether this processor runs the solver's eight-lane path (SolverSettings::wideLanes): AVX, on x86-64.
@@ -257,6 +262,14 @@ class ContactSolver {
   std::size_t slots_ = 0;
   std::vector<std::pair<double, std::uint32_t>> byLeaf_;  // bodies, leaf by leaf (sort keys: the cut's axis)
   SpinBarrier barrier_;
+  /// How the threads share out a level's nodes (see solve()): per part, the number of the sweep in which a
+  /// worker last claimed it; and the sweeps over a node that a worker took over from another's share
+  struct Claims {
+    std::array<std::atomic<std::uint32_t>, std::size_t{2} << kMaxDepth> part{};
+    std::atomic<std::size_t> takenOver{0};
+  };
+  std::unique_ptr<Claims> claims_ = std::make_unique<Claims>();
+  std::uint32_t phase_ = 0;  // the last solve's last sweep
   // velocities of the solver bodies and of each part's fixed side (always zero)
   std::vector<V4> v_, w_, pv_, pw_;
   /// per slot: the sums of the impulses and of their moments about the body's centre, in double, from which

@@ -781,6 +781,7 @@ void World::solveContacts() {
   solver_.solve(solverBodies_, contactPoints_, settings_.dt, pool_.get());
   stats_.warmStarted = solver_.warmStarted();
   stats_.heavyIslands = solver_.heavyIslandsSolved();
+  stats_.solverNodesTakenOver = solver_.nodesTakenOver();
   static_assert(std::tuple_size_v<decltype(stats_.solverRowsByLevel)> == ContactSolver::kMaxDepth + 1);
   for (int l = 0; l <= solver_.depth(); ++l) stats_.solverRowsByLevel[static_cast<std::size_t>(l)] = solver_.rowsAtLevel(l);
   if (anyRollingResistance_) resistRolling();

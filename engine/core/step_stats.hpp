@@ -57,6 +57,9 @@ struct StepStats {
   std::size_t contactPointsRead = 0;
   std::size_t warmStarted = 0;         ///< of them, warm started from the previous step
   std::size_t heavyIslands = 0;        ///< islands whose normal impulses were solved exactly (mass ratios)
+  /// sweeps over a node of the solver's tree that a thread took over from a slower one (no effect on the
+  /// result: a sign of threads running at uneven speeds). Not saved: it depends on the threads' timing.
+  std::size_t solverNodesTakenOver = 0;
   /// Solver contact points per level of the solver's tree, the root first (levels past its depth: 0).
   /// With processes, a node's points are solved by one process: the upper levels are the solve's
   /// critical path (docs/distributed.md).

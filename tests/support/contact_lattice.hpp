@@ -87,6 +87,7 @@ struct Solved {
   std::vector<SolverBody> bodies;
   std::vector<Vec3> impulses;
   std::size_t heavyIslands = 0;  // islands solved exactly, over the five solves
+  std::size_t nodesTakenOver = 0;  // sweeps over a node one thread took over from another, over the five
 };
 
 /// Expects two solves' velocities, pseudo velocities and impulses to be the same bit for bit.
@@ -118,6 +119,7 @@ inline Solved solveLattice(int threads, int bodiesPerLeaf, int iterations, Proce
     solver.solve(l.bodies, l.points, 1.0 / 240.0, threads > 1 ? &pool : nullptr);
     r.impulses.insert(r.impulses.end(), solver.impulses().begin(), solver.impulses().end());
     r.heavyIslands += solver.heavyIslandsSolved();
+    r.nodesTakenOver += solver.nodesTakenOver();
   }
   r.bodies = l.bodies;
   return r;
