@@ -653,14 +653,19 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
     forRange(worker, level, 0, std::size_t{1} << level, f);
   };
   // The sweeps over a level's nodes (preparing them, the iterations) go by claims: each worker takes the
-  // nodes of its own range in turn, then any of the others' that no worker has taken yet, from the far end.
-  // Threads that run at one speed keep their own nodes, sweep after sweep (and their batches in their
-  // caches); a thread that runs slower (another process on its core, an uneven processor) hands its last
-  // nodes to one that is done. Which thread solves a node never changes its arithmetic, so the result is
-  // the same. A node is claimed by writing the sweep's number into its entry of claims_: every worker
-  // numbers the sweeps alike, from phase_ (so no entry needs clearing between sweeps or solves).
+  // nodes of its own range in turn, from its front, and then any nodes still left in the others' ranges, from
+  // their backs. Threads that run at one speed keep their own nodes, sweep after sweep (and their batches in
+  // their caches); a thread that runs slower (another process on its core, an uneven processor) hands its
+  // last nodes to one that is done. Which thread solves a node never changes its arithmetic, so the result
+  // is the same. Each worker's range is one word on a cache line of its own: the sweep's number (every
+  // worker numbers the sweeps alike, from phase_), and the range's front and back, taken by compare and
+  // swap. A word of another sweep is a range with nothing left to take. Where a level has fewer than
+  // kClaimedNodesPerWorker nodes per worker, the workers take their own ranges without claims: with two
+  // nodes each, one worker could only gain by taking over a node while running at more than twice the
+  // other's speed, and the claims' cache lines would pass between the cores in every sweep for nothing.
+  constexpr std::size_t kClaimedNodesPerWorker = 3;
   if (phase_ > 0xf0000000u) {
-    for (std::atomic<std::uint32_t>& c : claims_->part) c.store(0, std::memory_order_relaxed);
+    for (Claims::Range& r : claims_->range) r.word.store(0, std::memory_order_relaxed);
     phase_ = 0;
   }
   claims_->takenOver.store(0, std::memory_order_relaxed);
@@ -669,17 +674,37 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
   const auto forClaimed = [&](int worker, std::uint32_t& phase, int level, std::size_t first, std::size_t end, const auto& f) {
     ++phase;
     const std::size_t n = end - first;
-    const std::size_t mineBegin = first + firstShare(worker, workers, n), mineEnd = first + firstShare(worker + 1, workers, n);
-    const auto claim = [&](std::size_t k) {
-      const std::size_t part = levelStart(level) + k;
-      if (claims_->part[part].exchange(phase, std::memory_order_relaxed) == phase) return false;
-      f(part);
-      return true;
+    const auto pack = [&](std::size_t front, std::size_t back) {
+      return (std::uint64_t{phase} << 32) | (static_cast<std::uint64_t>(front) << 16) | static_cast<std::uint64_t>(back);
     };
-    for (std::size_t k = mineBegin; k < mineEnd; ++k) claim(k);
-    if (workers == 1) return;
-    for (std::size_t k = end; k-- > first;)
-      if ((k < mineBegin || k >= mineEnd) && claim(k)) claims_->takenOver.fetch_add(1, std::memory_order_relaxed);
+    // takes a node from range r's front (its owner) or back (another worker); false once none is left
+    const auto take = [&](Claims::Range& r, bool front) {
+      std::uint64_t w = r.word.load(std::memory_order_acquire);
+      for (;;) {
+        const std::size_t f0 = (w >> 16) & 0xffffu, b0 = w & 0xffffu;
+        if ((w >> 32) != phase || f0 >= b0) return false;
+        const std::size_t k = front ? f0 : b0 - 1;
+        if (r.word.compare_exchange_weak(w, front ? pack(f0 + 1, b0) : pack(f0, b0 - 1), std::memory_order_acq_rel,
+                                         std::memory_order_acquire)) {
+          f(levelStart(level) + k);
+          return true;
+        }
+      }
+    };
+    const std::size_t mineBegin = first + firstShare(worker, workers, n), mineEnd = first + firstShare(worker + 1, workers, n);
+    if (n < kClaimedNodesPerWorker * static_cast<std::size_t>(workers)) {
+      // (too few nodes for a faster worker to gain by taking one over: each takes its own range, and no
+      // claims are made)
+      for (std::size_t k = mineBegin; k < mineEnd; ++k) f(levelStart(level) + k);
+      return;
+    }
+    Claims::Range& own = claims_->range[static_cast<std::size_t>(worker)];
+    own.word.store(pack(mineBegin, mineEnd), std::memory_order_release);
+    while (take(own, true)) {
+    }
+    for (int k = 1; k < workers; ++k)
+      while (take(claims_->range[static_cast<std::size_t>((worker + k) % workers)], false))
+        claims_->takenOver.fetch_add(1, std::memory_order_relaxed);
   };
   const auto setUp = [&](int worker) {
     // the points' bodies, compact (each thread reads its share of the points once; the ordering then

@@ -21,8 +21,8 @@
 // it crosses. In every iteration the leaves' points are solved first, then those of the nodes one level up,
 // and so on to the root's. The nodes of one level share no body, so threads can solve them at once (a spin
 // barrier between the levels) with exactly the arithmetic of one thread: the result does not depend on the
-// thread count, nor on which thread (or, across machines, which process) solves which node. So a thread
-// that is done with its share of a level takes over the nodes a slower one has not started.
+// thread count, nor on which thread (or, across machines, which process) solves which node. So, where a
+// level has enough nodes, a thread that is done with its share takes over nodes a slower one has not started.
 
 #include <array>
 #include <atomic>
@@ -262,10 +262,14 @@ class ContactSolver {
   std::size_t slots_ = 0;
   std::vector<std::pair<double, std::uint32_t>> byLeaf_;  // bodies, leaf by leaf (sort keys: the cut's axis)
   SpinBarrier barrier_;
-  /// How the threads share out a level's nodes (see solve()): per part, the number of the sweep in which a
-  /// worker last claimed it; and the sweeps over a node that a worker took over from another's share
+  /// How the threads share out a level's nodes (see solve()): per worker, the sweep's number and the front
+  /// and back of the nodes of its range still to take (a cache line each); and the sweeps over a node that
+  /// a worker took over from another's range
   struct Claims {
-    std::array<std::atomic<std::uint32_t>, std::size_t{2} << kMaxDepth> part{};
+    struct alignas(64) Range {
+      std::atomic<std::uint64_t> word{0};
+    };
+    std::array<Range, std::size_t{1} << kMaxDepth> range{};  // (at most one worker per leaf)
     std::atomic<std::size_t> takenOver{0};
   };
   std::unique_ptr<Claims> claims_ = std::make_unique<Claims>();
