@@ -692,9 +692,9 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       }
     };
     const std::size_t mineBegin = first + firstShare(worker, workers, n), mineEnd = first + firstShare(worker + 1, workers, n);
-    if (n < kClaimedNodesPerWorker * static_cast<std::size_t>(workers)) {
-      // (too few nodes for a faster worker to gain by taking one over: each takes its own range, and no
-      // claims are made)
+    if (workers == 1 || n < kClaimedNodesPerWorker * static_cast<std::size_t>(workers)) {
+      // (one worker, or too few nodes for a faster worker to gain by taking one over: each takes its own
+      // range, and no claims are made)
       for (std::size_t k = mineBegin; k < mineEnd; ++k) f(levelStart(level) + k);
       return;
     }
