@@ -54,7 +54,7 @@ Vec3 wide(const V4& x) { return x.head<3>().cast<double>(); }
 /// The Jacobian of direction d at arms rA, rB into lane l of an axis batch, and its effective mass
 /// (computed in double).
 template <class AxisBatch>
-float prepareAxis(const SolverBody* a, const SolverBody* b, const Vec3& rA, const Vec3& rB, const Vec3& d, AxisBatch& x,
+[[gnu::always_inline]] inline float prepareAxis(const SolverBody* a, const SolverBody* b, const Vec3& rA, const Vec3& rB, const Vec3& d, AxisBatch& x,
                   int l) {
   const Vec3 crossA = rA.cross(d), crossB = rB.cross(d);
   const Vec3 turnA = a ? Vec3(a->invInertia * crossA) : Vec3::Zero();
