@@ -17,8 +17,8 @@ constexpr double kListSkin = 0.25;
 
 /// The contact of particles a and b (world positions, radii) at centre distance squared `dist2`, whose radii
 /// sum to `rsum` (what touch() and the processes' merge both compute it from, with the same arithmetic).
-[[gnu::always_inline]] inline void pairContact(const ParticleStore& p, ParticleId a, ParticleId b, const Vec3& d, double rsum, double dist2,
-                 ParticleContact& c) {
+[[gnu::always_inline]] inline void pairContact(const ParticleStore& p, ParticleId a, ParticleId b, const Vec3& d,
+                                               double rsum, double dist2, ParticleContact& c) {
   const double dist = std::sqrt(dist2);
   c.a = a;
   c.b = b;
@@ -31,7 +31,8 @@ constexpr double kListSkin = 0.25;
 
 /// Contact between particles a and b (world positions, radii) if they touch, or come within `margin` x
 /// (r_a + r_b) plus `sweep` [m] of touching (a speculative contact, negative depth).
-[[gnu::always_inline]] inline bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, double sweep, ParticleContact& c) {
+[[gnu::always_inline]] inline bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, double sweep,
+                                        ParticleContact& c) {
   const Vec3 d = p.position[b.index()] - p.position[a.index()];
   const double rsum = p.radius[a.index()] + p.radius[b.index()];
   const double dist2 = d.squaredNorm();

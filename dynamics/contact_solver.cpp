@@ -21,6 +21,10 @@
 
 namespace volpar {
 
+/// The solver's innermost pieces are always inlined: whether GCC inlines them otherwise changes with the
+/// size of their callers, and a call per row costs a few per cent of the whole step.
+#define VOLPAR_ALWAYS_INLINE [[gnu::always_inline]] inline
+
 namespace {
 
 constexpr std::uint32_t kFixed = ContactPointInput::kFixed;
@@ -54,8 +58,8 @@ Vec3 wide(const V4& x) { return x.head<3>().cast<double>(); }
 /// The Jacobian of direction d at arms rA, rB into lane l of an axis batch, and its effective mass
 /// (computed in double).
 template <class AxisBatch>
-[[gnu::always_inline]] inline float prepareAxis(const SolverBody* a, const SolverBody* b, const Vec3& rA, const Vec3& rB, const Vec3& d, AxisBatch& x,
-                  int l) {
+VOLPAR_ALWAYS_INLINE float prepareAxis(const SolverBody* a, const SolverBody* b, const Vec3& rA, const Vec3& rB,
+                                        const Vec3& d, AxisBatch& x, int l) {
   const Vec3 crossA = rA.cross(d), crossB = rB.cross(d);
   const Vec3 turnA = a ? Vec3(a->invInertia * crossA) : Vec3::Zero();
   const Vec3 turnB = b ? Vec3(b->invInertia * crossB) : Vec3::Zero();
@@ -326,10 +330,6 @@ inline F4 exactSqrt(const F4& x) {
   return F4(std::sqrt(x[0]), std::sqrt(x[1]), std::sqrt(x[2]), std::sqrt(x[3]));
 #endif
 }
-
-/// The solver's innermost pieces are always inlined: whether GCC inlines them otherwise changes with the
-/// size of their callers, and a call per row costs a few per cent of the whole step.
-#define VOLPAR_ALWAYS_INLINE [[gnu::always_inline]] inline
 
 /// J v of an axis, lane by lane.
 struct Motion {
@@ -641,16 +641,12 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
                           : 1;
   barrier_.reset(workers);
   if (!planned) ab_.resize(np);
-  // calls f(part) for the nodes of a level that `worker` of this process takes, of all the level's nodes
-  // (forShare: work every process does, such as the set-up, in shares fixed by the worker's number)
+  // calls f(part) for `worker`'s share of a level's nodes, of all of them (work every process does, such as
+  // the set-up, in shares fixed by the worker's number)
   const int ranks = processes_ ? processes_->size() : 1, me = processes_ ? processes_->rank() : 0;
-  const auto forRange = [&](int worker, int level, std::size_t first, std::size_t end, const auto& f) {
-    const std::size_t n = end - first;
-    for (std::size_t k = first + firstShare(worker, workers, n); k < first + firstShare(worker + 1, workers, n); ++k)
-      f(levelStart(level) + k);
-  };
   const auto forShare = [&](int worker, int level, const auto& f) {
-    forRange(worker, level, 0, std::size_t{1} << level, f);
+    const std::size_t n = std::size_t{1} << level;
+    for (std::size_t k = firstShare(worker, workers, n); k < firstShare(worker + 1, workers, n); ++k) f(levelStart(level) + k);
   };
   // The sweeps over a level's nodes (preparing them, the iterations) go by claims: each worker takes the
   // nodes of its own range in turn, from its front, and then any nodes still left in the others' ranges, from
