@@ -323,12 +323,26 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
       list.relPosition = it->relPosition;
       list.skin = it->skin;
       list.sweep = it->sweep;
-      ParticleContact c;
-      const auto listed = cache_.pairs.begin() + it->first;
+      const auto* listed = cache_.pairs.data() + it->first;
       w.cache.pairs.insert(w.cache.pairs.end(), listed, listed + it->count);
-      for (std::uint32_t k = it->first; k < it->first + it->count; ++k) {
-        const auto& [pa, pb] = cache_.pairs[k];
-        if (touch(p, pa, pb, margin_, swept, c)) out.contacts.push_back(c);
+      // the pairs within reach, marked without a branch (about one listed pair in six touches, at no
+      // pattern a branch predictor could follow), then their contacts: touch()'s test and contact, in two
+      // passes
+      if (w.hits.size() < it->count) w.hits.resize(it->count);
+      std::uint32_t hits = 0;
+      for (std::uint32_t k = 0; k < it->count; ++k) {
+        const auto& [pa, pb] = listed[k];
+        const double rsum = p.radius[pa.index()] + p.radius[pb.index()];
+        const double dist2 = (p.position[pb.index()] - p.position[pa.index()]).squaredNorm();
+        const double within = rsum * (1.0 + margin_) + swept;
+        w.hits[hits] = k;
+        hits += dist2 < within * within ? 1u : 0u;
+      }
+      ParticleContact c;
+      for (std::uint32_t h = 0; h < hits; ++h) {
+        const auto& [pa, pb] = listed[w.hits[h]];
+        pairContact(p, pa, pb, c);
+        out.contacts.push_back(c);
       }
     } else {
       list.relRotation = relRotation;

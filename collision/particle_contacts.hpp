@@ -167,6 +167,7 @@ class ContactFinder {
     std::size_t contactBase = 0, groupBase = 0, planeContactBase = 0, planeGroupBase = 0, listBase = 0, pairBase = 0;
     std::vector<std::pair<ParticleId, ParticleId>> found;
     std::array<std::vector<ParticleId>, 2> near;  // searchPair()'s scratch
+    std::vector<std::uint32_t> hits;              // a reused list's pairs within reach (bodyPair()'s scratch)
     std::size_t reused = 0;
     std::size_t cursor = 0;  // the last step's lists are walked in step with the (sorted) body pairs
   };
