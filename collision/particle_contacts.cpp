@@ -325,9 +325,9 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
       list.sweep = it->sweep;
       const auto* listed = cache_.pairs.data() + it->first;
       w.cache.pairs.insert(w.cache.pairs.end(), listed, listed + it->count);
-      // the pairs within reach, marked without a branch (about one listed pair in six touches, at no
-      // pattern a branch predictor could follow), then their contacts: touch()'s test and contact, in two
-      // passes
+      // the pairs within reach, marked without a branch (in pile-1000 about four listed pairs in ten are, in
+      // no pattern a branch predictor could follow), then their contacts: touch()'s test and contact, in
+      // two passes
       if (w.hits.size() < it->count) w.hits.resize(it->count);
       std::uint32_t hits = 0;
       for (std::uint32_t k = 0; k < it->count; ++k) {
@@ -454,6 +454,7 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
     chunks_[k].cache.clear();
     chunks_[k].reused = 0;
   }
+  std::size_t onlyChunkBodyGroups = 0;
   const auto work = [&](int, std::size_t k) {
     Chunk& w = chunks_[k];
     const std::size_t begin = pairs.size() * k / chunks, end = pairs.size() * (k + 1) / chunks;
@@ -469,11 +470,35 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
           cache_.lists.begin());
     }
     for (std::size_t i = begin; i < end; ++i) bodyPair(particles, bodies, pairs[i].a, pairs[i].b, boxes, w);
+    // (one chunk: the planes' contacts follow the body pairs' in its own output, already in their order)
+    if (chunks == 1) onlyChunkBodyGroups = w.out.groups.size();
+    ContactSet& planesOut = chunks == 1 ? w.out : w.planes;
     for (std::size_t i = planePairs.size() * k / chunks; i < planePairs.size() * (k + 1) / chunks; ++i)
-      planeContacts(particles, bodies, planePairs[i].body, planePairs[i].plane, planes[planePairs[i].plane.index()], w.planes);
+      planeContacts(particles, bodies, planePairs[i].body, planePairs[i].plane, planes[planePairs[i].plane.index()], planesOut);
   };
   if (shared) pool->runItems(chunks, work);
   else work(0, 0);
+  // lookups need the lists in key order (body pairs come sorted; if a caller's do not, nothing is reused)
+  const auto checkOrder = [&] {
+    if (!std::is_sorted(cache_.lists.begin(), cache_.lists.end(), [](const PairList& x, const PairList& y) {
+          return std::make_pair(x.a, x.b) < std::make_pair(y.a, y.b);
+        }))
+      cache_.clear();
+  };
+  if (chunks == 1) {
+    // the one chunk's output and lists are the result as they stand: exchanged, not copied (the chunk
+    // takes the last step's buffers, which it clears and refills in the next)
+    Chunk& w = chunks_[0];
+    reusedPairs_ = w.reused;
+    std::swap(out.contacts, w.out.contacts);
+    std::swap(out.groups, w.out.groups);
+    std::swap(cache_.lists, w.cache.lists);
+    std::swap(cache_.pairs, w.cache.pairs);
+    checkOrder();
+    const std::size_t groupsOfPlanes = out.groups.size() - onlyChunkBodyGroups;
+    for (const BodyId id : deformables) selfContacts(particles, id, out);
+    return {onlyChunkBodyGroups, groupsOfPlanes};
+  }
   // the chunks' outputs at their places, copied by the workers
   reusedPairs_ = 0;
   std::size_t contacts = 0, groups = 0, lists = 0, listed = 0;
@@ -524,11 +549,7 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
   };
   if (shared) pool->run(chunks, copy);
   else copy(0, 0, chunks);
-  // lookups need the lists in key order (body pairs come sorted; if a caller's do not, nothing is reused)
-  if (!std::is_sorted(cache_.lists.begin(), cache_.lists.end(), [](const PairList& x, const PairList& y) {
-        return std::make_pair(x.a, x.b) < std::make_pair(y.a, y.b);
-      }))
-    cache_.clear();
+  checkOrder();
   for (const BodyId id : deformables) selfContacts(particles, id, out);
   return {bodyGroups, groups - bodyGroups};
 }

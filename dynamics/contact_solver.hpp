@@ -114,10 +114,12 @@ class ContactSolver {
   void solve(std::span<SolverBody> bodies, std::span<const ContactPointInput> points, double dt,
              ThreadPool* pool = nullptr);
 
-  /// With processes, optionally before solve(): plans the solve (the tree, the rows' order and the division
+  /// Optionally before solve(): plans the solve (the tree, the rows' order and, with processes, the division
   /// among the processes) from the bodies and each point's two bodies alone (`pointBodies`: per point, its
-  /// solver bodies a and b, as the points will name them). Then pointsRead() says which points this process's
-  /// share of the next solve() reads; of the others, solve() reads only a and b, which must be as planned.
+  /// solver bodies a and b, as the points will name them), which solve() would otherwise plan itself, with
+  /// the same result. So the points themselves can be made while it plans (World does, on one process), or
+  /// with processes only those this process reads: pointsRead() says which points this process's share of
+  /// the next solve() reads; of the others, solve() reads only a and b, which must be as planned.
   void plan(std::span<const SolverBody> bodies, std::span<const std::pair<std::uint32_t, std::uint32_t>> pointBodies);
   /// Per point of the last plan(): 1 where this process's share of the solve reads it (all of them unless the
   /// processes divide the preparation: see solve()), else 0.

@@ -1,9 +1,6 @@
 #include "volpar/engine/world.hpp"
 
 #include <Eigen/SVD>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -13,6 +10,7 @@
 #include "volpar/dynamics/deformable_integrator.hpp"
 #include "volpar/dynamics/mass_properties.hpp"
 #include "volpar/dynamics/rigid_integrator.hpp"
+#include "volpar/dynamics/rigid_particles.hpp"
 
 namespace volpar {
 
@@ -581,7 +579,7 @@ void World::buildContactPoints() {
       default: return ContactPointInput::kFixed;
     }
   };
-  const bool planned = processes_ && processes_->size() > 1;
+  const bool divided = processes_ && processes_->size() > 1;
   pointBodies_.clear();
   pointFirst_[0] = 0;
   for (std::size_t j = 0; j < np; ++j) {
@@ -589,24 +587,21 @@ void World::buildContactPoints() {
     pointFirst_[j + 1] = pointFirst_[j] + (pp.mode == kNone ? 0 : pp.mode == kReduced ? 4 : pp.kept);
     if (pp.mode == kNone) continue;
     const BodyKind kindA = pp.kindA, kindB = pp.kindB;
-    const bool deformable = kindA == BodyKind::Deformable || kindB == BodyKind::Deformable;
-    if (!deformable) {
-      // (every contact of the patch names the patch's two bodies: its particle a is of body a)
-      if (kindA == BodyKind::Rigid) rigidSolverIndex(pp.a);
-      if (kindB == BodyKind::Rigid) rigidSolverIndex(pp.b);
-      if (!planned) continue;
+    if (kindA != BodyKind::Deformable && kindB != BodyKind::Deformable) {
+      // (every point of the patch names the patch's two bodies, or body a and the fixed world: a rigid
+      // body's points share its slot)
+      const std::uint32_t slotA = kindA == BodyKind::Rigid ? rigidSolverIndex(pp.a) : ContactPointInput::kFixed;
+      const std::uint32_t slotB = kindB == BodyKind::Rigid ? rigidSolverIndex(pp.b) : ContactPointInput::kFixed;
+      pointBodies_.insert(pointBodies_.end(), pointFirst_[j + 1] - pointFirst_[j], {slotA, slotB});
+      continue;
     }
     const ContactPatch& patch = ps.patches[j];
     const std::uint32_t* kept = keptContacts_.data() + patch.first;
-    if (deformable) {
-      for (std::uint32_t k = 0; k < pp.kept; ++k) {
-        const ParticleContact& c = cs.contacts[kept[k]];
-        solverIndex(c.a);
-        if (c.b.valid()) solverIndex(c.b);
-      }
+    for (std::uint32_t k = 0; k < pp.kept; ++k) {
+      const ParticleContact& c = cs.contacts[kept[k]];
+      solverIndex(c.a);
+      if (c.b.valid()) solverIndex(c.b);
     }
-    if (!planned) continue;
-    // (a reduced patch's points are four of its kept contacts, between the same two rigid bodies)
     for (std::uint32_t k = 0; k < pointFirst_[j + 1] - pointFirst_[j]; ++k) {
       const ParticleContact& c = cs.contacts[kept[k]];
       pointBodies_.emplace_back(slotOf(patch.a, kindA, c.a),
@@ -616,10 +611,13 @@ void World::buildContactPoints() {
   makeSolverBodies();
   contactPoints_.resize(pointFirst_[np]);
   pointParticles_.resize(pointFirst_[np]);
-  // with processes, the solver plans its division first: the points of other processes' nodes are not read
-  // (their particles are named all the same: the loads on breakable bodies take every point's impulse)
+  // the solver plans its order from the points' bodies alone (ContactSolver::plan()). With processes it
+  // plans first, and the points of other processes' nodes are not read (their particles are named all the
+  // same: the loads on breakable bodies take every point's impulse); on one process one thread plans while
+  // the others make the points (below)
+  const bool planned = !contactPoints_.empty();
   std::span<const std::uint8_t> read;
-  if (planned && !contactPoints_.empty()) {
+  if (divided && planned) {
     solver_.plan(solverBodies_, pointBodies_);
     read = solver_.pointsRead();
   }
@@ -742,9 +740,23 @@ void World::buildContactPoints() {
       }
     }
   };
-  // (patches differ in cost, a reduced one most: handed out in chunks)
-  if (pool_ && pool_->worthSharing(np, 512)) pool_->runChunks(np, fill);
-  else fill(0, 0, np);
+  // (patches differ in cost, a reduced one most: handed out in chunks, with the solver's plan as one more
+  // item where one process solves)
+  const bool planHere = planned && !divided;
+  if (pool_ && pool_->worthSharing(np, 512)) {
+    if (planHere) {
+      const std::size_t chunks = ThreadPool::kChunksPerWorker * static_cast<std::size_t>(pool_->workers());
+      pool_->runItems(chunks + 1, [&](int worker, std::size_t item) {
+        if (item == 0) solver_.plan(solverBodies_, pointBodies_);
+        else fill(worker, np * (item - 1) / chunks, np * item / chunks);
+      });
+    } else {
+      pool_->runChunks(np, fill);
+    }
+  } else {
+    if (planHere) solver_.plan(solverBodies_, pointBodies_);
+    fill(0, 0, np);
+  }
 }
 
 std::pair<const Material*, const Material*> World::contactMaterials(ParticleId a, ParticleId b, PlaneId plane) const {
@@ -949,74 +961,10 @@ void World::integratePositions() {
 }
 
 void World::updateRigidParticles(BodyId id) {
-  const BodyState& s = bodies_.state[id.index()];
-  const Mat3 r = s.orientation.toRotationMatrix();
-  const Vec3* const local = particles_.local.data();
-  const double* const radius = particles_.radius.data();
-  Vec3* const position = particles_.position.data();
-  Vec3* const velocity = particles_.velocity.data();
-  const std::vector<ParticleId>& ids = bodies_.info[id.index()].particles;
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  // each particle's arithmetic, in this order in both forms below: arm = r * local, the products of each row
-  // summed from the left in the first two rows and from the right in the third (the order Eigen's product
-  // took, kept so that trajectories stayed as they were), x = centre + arm, and v + w x arm. The box of the
-  // particles' spheres is their minima and maxima, which do not depend on the order
-#if defined(__SSE2__)
-  // (two particles at a time, one in each lane of a pair of doubles)
-  const auto all = [](double x) { return _mm_set1_pd(x); };
-  const __m128d r00 = all(r(0, 0)), r01 = all(r(0, 1)), r02 = all(r(0, 2));
-  const __m128d r10 = all(r(1, 0)), r11 = all(r(1, 1)), r12 = all(r(1, 2));
-  const __m128d r20 = all(r(2, 0)), r21 = all(r(2, 1)), r22 = all(r(2, 2));
-  const __m128d c0 = all(s.position.x()), c1 = all(s.position.y()), c2 = all(s.position.z());
-  const __m128d v0 = all(s.linearVelocity.x()), v1 = all(s.linearVelocity.y()), v2 = all(s.linearVelocity.z());
-  const __m128d w0 = all(s.angularVelocity.x()), w1 = all(s.angularVelocity.y()), w2 = all(s.angularVelocity.z());
-  __m128d lo0 = all(kInf), lo1 = lo0, lo2 = lo0, hi0 = all(-kInf), hi1 = hi0, hi2 = hi0;
-  const auto left = [](__m128d a, __m128d b, __m128d c, __m128d x, __m128d y, __m128d z) {
-    return _mm_add_pd(_mm_add_pd(_mm_mul_pd(a, x), _mm_mul_pd(b, y)), _mm_mul_pd(c, z));
-  };
-  const auto right = [](__m128d a, __m128d b, __m128d c, __m128d x, __m128d y, __m128d z) {
-    return _mm_add_pd(_mm_mul_pd(a, x), _mm_add_pd(_mm_mul_pd(b, y), _mm_mul_pd(c, z)));
-  };
-  const auto place = [&](std::size_t i, std::size_t j) {  // (particles i and j; j == i for a last one alone)
-    const __m128d lx = _mm_set_pd(local[j].x(), local[i].x()), ly = _mm_set_pd(local[j].y(), local[i].y()),
-                  lz = _mm_set_pd(local[j].z(), local[i].z());
-    const __m128d ax = left(r00, r01, r02, lx, ly, lz), ay = left(r10, r11, r12, lx, ly, lz), az = right(r20, r21, r22, lx, ly, lz);
-    const __m128d x0 = _mm_add_pd(c0, ax), x1 = _mm_add_pd(c1, ay), x2 = _mm_add_pd(c2, az);
-    const __m128d u0 = _mm_add_pd(v0, _mm_sub_pd(_mm_mul_pd(w1, az), _mm_mul_pd(w2, ay)));
-    const __m128d u1 = _mm_add_pd(v1, _mm_sub_pd(_mm_mul_pd(w2, ax), _mm_mul_pd(w0, az)));
-    const __m128d u2 = _mm_add_pd(v2, _mm_sub_pd(_mm_mul_pd(w0, ay), _mm_mul_pd(w1, ax)));
-    _mm_storel_pd(&position[i].x(), x0), _mm_storel_pd(&position[i].y(), x1), _mm_storel_pd(&position[i].z(), x2);
-    _mm_storel_pd(&velocity[i].x(), u0), _mm_storel_pd(&velocity[i].y(), u1), _mm_storel_pd(&velocity[i].z(), u2);
-    _mm_storeh_pd(&position[j].x(), x0), _mm_storeh_pd(&position[j].y(), x1), _mm_storeh_pd(&position[j].z(), x2);
-    _mm_storeh_pd(&velocity[j].x(), u0), _mm_storeh_pd(&velocity[j].y(), u1), _mm_storeh_pd(&velocity[j].z(), u2);
-    const __m128d rad = _mm_set_pd(radius[j], radius[i]);
-    lo0 = _mm_min_pd(lo0, _mm_sub_pd(x0, rad)), lo1 = _mm_min_pd(lo1, _mm_sub_pd(x1, rad)), lo2 = _mm_min_pd(lo2, _mm_sub_pd(x2, rad));
-    hi0 = _mm_max_pd(hi0, _mm_add_pd(x0, rad)), hi1 = _mm_max_pd(hi1, _mm_add_pd(x1, rad)), hi2 = _mm_max_pd(hi2, _mm_add_pd(x2, rad));
-  };
-  const std::size_t n = ids.size();
-  for (std::size_t k = 0; k + 1 < n; k += 2) place(ids[k].index(), ids[k + 1].index());
-  if (n % 2 == 1) place(ids[n - 1].index(), ids[n - 1].index());
-  const auto low = [](__m128d m) { return std::min(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m))); };
-  const auto high = [](__m128d m) { return std::max(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m))); };
-  bodyBoxes_[id.index()] = Aabb{Vec3(low(lo0), low(lo1), low(lo2)), Vec3(high(hi0), high(hi1), high(hi2))};
-#else
-  const Vec3 c = s.position, v = s.linearVelocity, w = s.angularVelocity;
-  double lo0 = kInf, lo1 = kInf, lo2 = kInf, hi0 = -kInf, hi1 = -kInf, hi2 = -kInf;
-  for (const ParticleId p : ids) {
-    const std::size_t i = p.index();
-    const Vec3& l = local[i];
-    const double ax = (r(0, 0) * l.x() + r(0, 1) * l.y()) + r(0, 2) * l.z();
-    const double ay = (r(1, 0) * l.x() + r(1, 1) * l.y()) + r(1, 2) * l.z();
-    const double az = r(2, 0) * l.x() + (r(2, 1) * l.y() + r(2, 2) * l.z());
-    const Vec3 x(c.x() + ax, c.y() + ay, c.z() + az);
-    position[i] = x;
-    velocity[i] = Vec3(v.x() + (w.y() * az - w.z() * ay), v.y() + (w.z() * ax - w.x() * az), v.z() + (w.x() * ay - w.y() * ax));
-    const double rad = radius[i];
-    lo0 = std::min(lo0, x.x() - rad), lo1 = std::min(lo1, x.y() - rad), lo2 = std::min(lo2, x.z() - rad);
-    hi0 = std::max(hi0, x.x() + rad), hi1 = std::max(hi1, x.y() + rad), hi2 = std::max(hi2, x.z() + rad);
-  }
-  bodyBoxes_[id.index()] = Aabb{Vec3(lo0, lo1, lo2), Vec3(hi0, hi1, hi2)};
-#endif
+  const ParticleBounds box = placeRigidParticles(bodies_.state[id.index()], bodies_.info[id.index()].particles,
+                                                 particles_.local.data(), particles_.radius.data(),
+                                                 particles_.position.data(), particles_.velocity.data());
+  bodyBoxes_[id.index()] = Aabb{box.lo, box.hi};
 }
 
 void World::updateDeformableBodyStates() {
