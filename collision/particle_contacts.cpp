@@ -183,16 +183,20 @@ void ContactFinder::forCells(const BodyGrid& g, const BodyState& s, const Aabb& 
     }
 }
 
-void ContactFinder::gatherMotion(const BodyStore& bodies) {
+void ContactFinder::gatherMotion(const BodyStore& bodies, ThreadPool* pool) {
   motion_.resize(grids_.size());
-  for (std::size_t i = 0; i < grids_.size(); ++i) {
-    const BodyState& s = bodies.state[i];
-    BodyMotion& m = motion_[i];
-    m.velocity = s.linearVelocity;
-    m.spin = s.angularVelocity.norm() * extent_[i];
-    m.margin = margin_ * grids_[i].maxRadius;
-    m.worldFrame = grids_[i].worldFrame;
-  }
+  const auto gather = [&](int, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) {
+      const BodyState& s = bodies.state[i];
+      BodyMotion& m = motion_[i];
+      m.velocity = s.linearVelocity;
+      m.spin = s.angularVelocity.norm() * extent_[i];
+      m.margin = margin_ * grids_[i].maxRadius;
+      m.worldFrame = grids_[i].worldFrame;
+    }
+  };
+  if (pool && pool->worthSharing(grids_.size(), 256)) pool->run(grids_.size(), gather);
+  else gather(0, 0, grids_.size());
 }
 
 double ContactFinder::sweepReach(BodyId a, BodyId b, const Vec3& n) const {
@@ -403,7 +407,7 @@ void ContactFinder::find(const ParticleStore& particles, const BodyStore& bodies
                          ThreadPool* pool) {
   if (adjacencyDirty_) rebuildAdjacency(particles, connectors);
   for (const BodyId id : deformables_) buildGrid(grids_[id.index()], bodies.info[id.index()].particles, particles.position, particles);
-  gatherMotion(bodies);
+  gatherMotion(bodies, pool);
   const int ranks = processes_ ? processes_->size() : 1;
   if (ranks == 1) {
     search(particles, bodies, pairs, planePairs, planes, deformables_, boxes, out, pool);
@@ -458,6 +462,10 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
   const auto work = [&](int, std::size_t k) {
     Chunk& w = chunks_[k];
     const std::size_t begin = pairs.size() * k / chunks, end = pairs.size() * (k + 1) / chunks;
+    // (whether this range's pairs come in key order, after the range before: the lists follow the pairs, so
+    // they are in key order, which lookups need, where every range's pairs are)
+    w.inOrder = std::is_sorted(pairs.begin() + static_cast<std::ptrdiff_t>(begin), pairs.begin() + static_cast<std::ptrdiff_t>(end)) &&
+                (begin == 0 || begin >= end || !(pairs[begin] < pairs[begin - 1]));
     // where this range's pairs start among the last step's lists
     w.cursor = 0;
     if (begin < end) {
@@ -478,11 +486,10 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
   };
   if (shared) pool->runItems(chunks, work);
   else work(0, 0);
-  // lookups need the lists in key order (body pairs come sorted; if a caller's do not, nothing is reused)
+  // lookups need the lists in key order (body pairs come sorted; if a caller's do not, nothing is reused,
+  // which finds the same contacts)
   const auto checkOrder = [&] {
-    if (!std::is_sorted(cache_.lists.begin(), cache_.lists.end(), [](const PairList& x, const PairList& y) {
-          return std::make_pair(x.a, x.b) < std::make_pair(y.a, y.b);
-        }))
+    if (!std::all_of(chunks_.begin(), chunks_.begin() + static_cast<std::ptrdiff_t>(chunks), [](const Chunk& w) { return w.inOrder; }))
       cache_.clear();
   };
   if (chunks == 1) {

@@ -170,6 +170,7 @@ class ContactFinder {
     std::vector<std::uint32_t> hits;              // a reused list's pairs within reach (bodyPair()'s scratch)
     std::size_t reused = 0;
     std::size_t cursor = 0;  // the last step's lists are walked in step with the (sorted) body pairs
+    bool inOrder = true;     // the chunk's body pairs came in key order
   };
 
   /// How much farther than the margin [m] a pair of particles of bodies a and b (b invalid: a plane of
@@ -211,7 +212,7 @@ class ContactFinder {
     bool worldFrame = false;       // its grid is in the world frame (a deformable body)
   };
   std::vector<BodyMotion> motion_;
-  void gatherMotion(const BodyStore& bodies);
+  void gatherMotion(const BodyStore& bodies, ThreadPool* pool);
   bool reuse_ = true;
   PairCache cache_;              // candidate lists of the last find(), for the next
   std::vector<Chunk> chunks_;
