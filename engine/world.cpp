@@ -186,6 +186,8 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
     }
   }
   bodies_.add(state, std::move(info));
+  bodyKinds_.push_back(bodies_.info.back().kind);
+  bodyMaterials_.push_back(bodies_.info.back().material);
   rodForces_.emplace_back();
   bondLoads_.emplace_back();
   bodyBoxes_.emplace_back();
@@ -461,7 +463,7 @@ void World::buildContactPoints() {
   const PatchSet& ps = patches_;
   const std::size_t np = ps.patches.size();
   const double dt = settings_.dt;
-  const auto kind = [&](BodyId b) { return bodies_.info[b.index()].kind; };
+  const auto kind = [&](BodyId b) { return bodyKinds_[b.index()]; };
   // a contact's normal, from its particle a to b (a plane's contacts: the patch's)
   const auto normalOf = [&](const ContactPatch& patch, std::uint32_t contact) -> Vec3 {
     const ParticleContact& c = cs.contacts[contact];
@@ -766,8 +768,8 @@ std::pair<const Material*, const Material*> World::contactMaterials(ParticleId a
 }
 
 std::pair<const Material*, const Material*> World::contactMaterials(BodyId a, BodyId b, PlaneId plane) const {
-  const MaterialId mb = plane.valid() ? planes_[plane.index()].material : bodies_.info[b.index()].material;
-  return {&materials_[bodies_.info[a.index()].material.index()], &materials_[mb.index()]};
+  const MaterialId mb = plane.valid() ? planes_[plane.index()].material : bodyMaterials_[b.index()];
+  return {&materials_[bodyMaterials_[a.index()].index()], &materials_[mb.index()]};
 }
 
 void World::solveContacts() {

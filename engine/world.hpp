@@ -301,6 +301,10 @@ class World {
 
   // breakage
   std::vector<std::vector<ConnectorId>> bodyConnectors_;    // [B]
+  /// Each body's kind and material as in bodies_.info, kept compact for the lookups of every patch in the
+  /// step (a BodyInfo takes several cache lines); written wherever a body is added or restored.
+  std::vector<BodyKind> bodyKinds_;            // [B]
+  std::vector<MaterialId> bodyMaterials_;      // [B]
   std::vector<std::unique_ptr<RodForces>> rodForces_;       // [B], for rigid bodies with breakable rods
   std::vector<std::unique_ptr<BondLoads>> bondLoads_;       // [B], for rigid bodies with breakable bonds
   std::vector<BodyId> breakableRigid_;

@@ -310,6 +310,8 @@ void World::moveParticles(std::span<const ParticleId> ids, BodyId id, const Vec3
 
 BodyId World::addRigidBody(const BodyState& state, BodyInfo info, std::vector<ConnectorId> connectors) {
   const BodyId id = bodies_.add(state, std::move(info));
+  bodyKinds_.push_back(bodies_.info.back().kind);
+  bodyMaterials_.push_back(bodies_.info.back().material);
   bodyBoxes_.emplace_back();
   rodForces_.emplace_back();
   bondLoads_.emplace_back();

@@ -468,6 +468,9 @@ Status World::restoreState(const StateArchive& archive) {
   rigidBodies_.clear();
   for (std::size_t i = 0; i < nb; ++i)
     if (bodies_.info[i].alive && bodies_.info[i].kind == BodyKind::Rigid) rigidBodies_.emplace_back(i);
+  bodyKinds_.resize(nb);
+  bodyMaterials_.resize(nb);
+  for (std::size_t i = 0; i < nb; ++i) bodyKinds_[i] = bodies_.info[i].kind, bodyMaterials_[i] = bodies_.info[i].material;
   rodForces_.clear();
   bondLoads_.clear();
   rodForces_.resize(nb);
