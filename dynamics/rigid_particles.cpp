@@ -50,8 +50,8 @@ VOLPAR_AVX void storeRun(Vec3* at, __m256d x, __m256d y, __m256d z) {
 /// The particles ids[0, n), four at a time (a last group of fewer repeats its last particle in the lanes
 /// left over, as two lanes repeat a last one alone); their spheres' box into lo and hi.
 [[gnu::target("avx")]] void placeFours(const Mat3& r, const BodyState& s, const ParticleId* ids, std::size_t n,
-                                              const Vec3* local, const double* radius, Vec3* position, Vec3* velocity,
-                                              std::array<double, 3>& lo, std::array<double, 3>& hi) {
+                                       const Vec3* local, const double* radius, Vec3* position, Vec3* velocity,
+                                       std::array<double, 3>& lo, std::array<double, 3>& hi) {
   const __m256d r00 = _mm256_set1_pd(r(0, 0)), r01 = _mm256_set1_pd(r(0, 1)), r02 = _mm256_set1_pd(r(0, 2));
   const __m256d r10 = _mm256_set1_pd(r(1, 0)), r11 = _mm256_set1_pd(r(1, 1)), r12 = _mm256_set1_pd(r(1, 2));
   const __m256d r20 = _mm256_set1_pd(r(2, 0)), r21 = _mm256_set1_pd(r(2, 1)), r22 = _mm256_set1_pd(r(2, 2));
