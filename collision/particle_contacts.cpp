@@ -29,23 +29,29 @@ constexpr double kListSkin = 0.25;
   c.point = p.position[a.index()] + c.normal * (p.radius[a.index()] - 0.5 * c.depth);
 }
 
-/// Contact between particles a and b (world positions, radii) if they touch, or come within `margin` x
-/// (r_a + r_b) plus `sweep` [m] of touching (a speculative contact, negative depth).
-[[gnu::always_inline]] inline bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, double sweep,
-                                        ParticleContact& c) {
-  const Vec3 d = p.position[b.index()] - p.position[a.index()];
-  const double rsum = p.radius[a.index()] + p.radius[b.index()];
-  const double dist2 = d.squaredNorm();
-  const double reach = rsum * (1.0 + margin) + sweep;
-  if (!(dist2 < reach * reach)) return false;
-  pairContact(p, a, b, d, rsum, dist2, c);
-  return true;
-}
-
 /// The same contact from the two ids alone (particles a and b, found touching by the search).
-void pairContact(const ParticleStore& p, ParticleId a, ParticleId b, ParticleContact& c) {
+[[gnu::always_inline]] inline void pairContact(const ParticleStore& p, ParticleId a, ParticleId b, ParticleContact& c) {
   const Vec3 d = p.position[b.index()] - p.position[a.index()];
   pairContact(p, a, b, d, p.radius[a.index()] + p.radius[b.index()], d.squaredNorm(), c);
+}
+
+/// Whether particles a and b (world positions, radii) touch, or come within `margin` x (r_a + r_b) plus
+/// `sweep` [m] of touching: touch()'s test alone.
+[[gnu::always_inline]] inline bool withinReach(const ParticleStore& p, ParticleId a, ParticleId b, double margin,
+                                               double sweep) {
+  const double rsum = p.radius[a.index()] + p.radius[b.index()];
+  const double dist2 = (p.position[b.index()] - p.position[a.index()]).squaredNorm();
+  const double reach = rsum * (1.0 + margin) + sweep;
+  return dist2 < reach * reach;
+}
+
+/// Contact between particles a and b if they are withinReach() (a speculative contact, negative depth, where
+/// they do not touch).
+[[gnu::always_inline]] inline bool touch(const ParticleStore& p, ParticleId a, ParticleId b, double margin, double sweep,
+                                        ParticleContact& c) {
+  if (!withinReach(p, a, b, margin, sweep)) return false;
+  pairContact(p, a, b, c);
+  return true;
 }
 
 /// Height of particle pi's centre above plane pl [m].
@@ -329,18 +335,13 @@ void ContactFinder::bodyPair(const ParticleStore& p, const BodyStore& bodies, Bo
       list.sweep = it->sweep;
       const auto* listed = cache_.pairs.data() + it->first;
       w.cache.pairs.insert(w.cache.pairs.end(), listed, listed + it->count);
-      // the pairs within reach, marked without a branch (in pile-1000 about four listed pairs in ten are, in
-      // no pattern a branch predictor could follow), then their contacts: touch()'s test and contact, in
-      // two passes
+      // touch() in two passes: the pairs withinReach(), marked without a branch (in pile-1000 about four
+      // listed pairs in ten are, in no pattern a branch predictor could follow), then their contacts
       if (w.hits.size() < it->count) w.hits.resize(it->count);
       std::uint32_t hits = 0;
       for (std::uint32_t k = 0; k < it->count; ++k) {
-        const auto& [pa, pb] = listed[k];
-        const double rsum = p.radius[pa.index()] + p.radius[pb.index()];
-        const double dist2 = (p.position[pb.index()] - p.position[pa.index()]).squaredNorm();
-        const double within = rsum * (1.0 + margin_) + swept;
         w.hits[hits] = k;
-        hits += dist2 < within * within ? 1u : 0u;
+        hits += withinReach(p, listed[k].first, listed[k].second, margin_, swept) ? 1u : 0u;
       }
       ParticleContact c;
       for (std::uint32_t h = 0; h < hits; ++h) {

@@ -7,6 +7,7 @@
 #include <limits>
 #include <utility>
 
+#include "volpar/engine/core/processor.hpp"
 #include "volpar/engine/core/status.hpp"
 
 #if defined(__SSE2__)
@@ -522,17 +523,7 @@ template <class Batch, class After>
 
 }  // namespace
 
-bool ContactSolver::wideLanesAvailable() {
-#if VOLPAR_WIDE_LANES
-  static const bool available = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx") != 0;
-  }();
-  return available;
-#else
-  return false;
-#endif
-}
+bool ContactSolver::wideLanesAvailable() { return VOLPAR_WIDE_LANES && processorHasAvx(); }
 
 template <class After>
 void ContactSolver::velocityPart(std::size_t part, const After& after) {

@@ -4,6 +4,8 @@
 #include <array>
 #include <limits>
 
+#include "volpar/engine/core/processor.hpp"
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -113,25 +115,13 @@ VOLPAR_AVX void storeRun(Vec3* at, __m256d x, __m256d y, __m256d z) {
 
 }  // namespace
 
-bool rigidParticlesWideAvailable() {
-#if VOLPAR_RIGID_WIDE
-  static const bool available = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx") != 0;
-  }();
-  return available;
-#else
-  return false;
-#endif
-}
-
 ParticleBounds placeRigidParticles(const BodyState& s, std::span<const ParticleId> ids, const Vec3* local,
                                    const double* radius, Vec3* position, Vec3* velocity, [[maybe_unused]] bool wide) {
   const Mat3 r = s.orientation.toRotationMatrix();
   const std::size_t n = ids.size();
   std::array<double, 3> lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
 #if VOLPAR_RIGID_WIDE
-  if (wide && rigidParticlesWideAvailable()) {
+  if (wide && processorHasAvx()) {
     placeFours(r, s, ids.data(), n, local, radius, position, velocity, lo, hi);
     return {Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])};
   }

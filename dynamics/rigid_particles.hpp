@@ -18,13 +18,10 @@ struct ParticleBounds {
 /// (position -+ radius). Each particle's arithmetic is, in this order: the products of each row of R summed
 /// from the left in the first two rows and from the right in the third, then the sums above, without fused
 /// multiply-adds. Four particles at a time in the lanes of AVX registers where `wide` is true and the
-/// processor has AVX (rigidParticlesWideAvailable()), otherwise two at a time (one at a time without SSE2):
+/// processor has AVX (processorHasAvx()), otherwise two at a time (one at a time without SSE2):
 /// every lane does the same arithmetic, so the result is the same bit for bit, however the particles are
 /// numbered (a run of four consecutive ids is read and written four at a time).
 ParticleBounds placeRigidParticles(const BodyState& s, std::span<const ParticleId> ids, const Vec3* local,
                                    const double* radius, Vec3* position, Vec3* velocity, bool wide = true);
-
-/// Whether placeRigidParticles() can take four particles at a time here (the processor has AVX).
-[[nodiscard]] bool rigidParticlesWideAvailable();
 
 }  // namespace volpar

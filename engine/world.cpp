@@ -597,15 +597,13 @@ void World::buildContactPoints() {
       pointBodies_.insert(pointBodies_.end(), pointFirst_[j + 1] - pointFirst_[j], {slotA, slotB});
       continue;
     }
+    // (a patch with a deformable side is never reduced: each kept contact is a point)
     const ContactPatch& patch = ps.patches[j];
     const std::uint32_t* kept = keptContacts_.data() + patch.first;
     for (std::uint32_t k = 0; k < pp.kept; ++k) {
       const ParticleContact& c = cs.contacts[kept[k]];
       solverIndex(c.a);
       if (c.b.valid()) solverIndex(c.b);
-    }
-    for (std::uint32_t k = 0; k < pointFirst_[j + 1] - pointFirst_[j]; ++k) {
-      const ParticleContact& c = cs.contacts[kept[k]];
       pointBodies_.emplace_back(slotOf(patch.a, kindA, c.a),
                                 c.b.valid() ? slotOf(patch.b, kindB, c.b) : ContactPointInput::kFixed);
     }

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "volpar/dynamics/rigid_particles.hpp"
+#include "volpar/engine/core/processor.hpp"
 
 namespace volpar {
 namespace {
@@ -103,7 +104,7 @@ TEST(RigidParticles, FourAndTwoLanesGiveTheParticleByParticleArithmetic) {
     }
   }
   // (without AVX both calls take two lanes, and the test says so)
-  if (!rigidParticlesWideAvailable()) std::cout << "this processor has no AVX: only two lanes ran\n";
+  if (!processorHasAvx()) std::cout << "this processor has no AVX: only two lanes ran\n";
 }
 
 }  // namespace
