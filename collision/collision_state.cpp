@@ -172,10 +172,10 @@ bool restorePatches(StateReader& r, PatchSet& out, const ContactSet& contacts, s
     p.depth = scalars[2 * i];
     p.margin = scalars[2 * i + 1];
   }
-  out.contacts = std::move(members);
-  out.depthAlongNormal = std::move(along);
-  out.patchOfContact = std::move(patchOf);
-  out.flipped = std::move(flipped);
+  out.contacts.assign(members.begin(), members.end());
+  out.depthAlongNormal.assign(along.begin(), along.end());
+  out.patchOfContact.assign(patchOf.begin(), patchOf.end());
+  out.flipped.assign(flipped.begin(), flipped.end());
   NarrowPhaseStats& s = out.stats;
   const auto count = [&](std::size_t k) { return static_cast<std::size_t>(std::max<std::int64_t>(stats[k], 0)); };
   s.patches = count(0);
@@ -299,7 +299,7 @@ bool NarrowPhase::restoreCache(StateReader& r) {
   }
   c.pairs.resize(np);
   for (std::size_t i = 0; i < np; ++i) c.pairs[i] = {ParticleId(pairs[2 * i]), ParticleId(pairs[2 * i + 1])};
-  c.order = std::move(order);
+  c.order.assign(order.begin(), order.end());
   c.patches.resize(nq);
   for (std::size_t i = 0; i < nq; ++i) {
     CachedPatch& p = c.patches[i];

@@ -8,6 +8,7 @@
 #include <span>
 #include <vector>
 
+#include "volpar/engine/core/large_pages.hpp"
 #include "volpar/collision/normal_cache.hpp"
 #include "volpar/collision/particle_contacts.hpp"
 #include "volpar/collision/separating_plane.hpp"
@@ -89,16 +90,16 @@ struct NarrowPhaseStats {
 };
 
 struct PatchSet {
-  std::vector<ContactPatch> patches;
-  std::vector<std::uint32_t> contacts;       ///< indices into ContactSet::contacts, grouped by patch
+  LargeVector<ContactPatch> patches;
+  LargeVector<std::uint32_t> contacts;       ///< indices into ContactSet::contacts, grouped by patch
   /// Per contact of ContactSet (same order): overlap of the two particles' extents along the contact's
   /// normal (contactNormal), r_a + r_b - n . (x_b - x_a) [m] (plane contacts: the depth). A side's particle
   /// tops form a flat face.
-  std::vector<double> depthAlongNormal;
-  std::vector<std::uint32_t> patchOfContact; ///< per contact of ContactSet: its patch
+  LargeVector<double> depthAlongNormal;
+  LargeVector<std::uint32_t> patchOfContact; ///< per contact of ContactSet: its patch
   /// Per contact of ContactSet: 1 where its particle b lies on the patch's side A (self-contact of a
   /// deformable body, whose sides are found from the geometry); the contact's normal is then -normal.
-  std::vector<std::uint8_t> flipped;
+  LargeVector<std::uint8_t> flipped;
   NarrowPhaseStats stats;
 };
 

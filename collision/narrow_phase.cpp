@@ -237,7 +237,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   if (shared) pool->runItems(chunks, work);
   else work(0, 0);
   // (with processes: every process's chunks, in process order, and the contacts' values its workers wrote)
-  std::vector<Output>& list = ranks > 1 ? gathered_ : chunks_;
+  auto& list = ranks > 1 ? gathered_ : chunks_;
   const std::size_t listed = ranks > 1 ? gatherChunks(chunks) : chunks;
   if (ranks > 1) {
     shareContacts(contacts, out.depthAlongNormal);
@@ -314,7 +314,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
 }
 
 template <class T>
-void NarrowPhase::shareContacts(const ContactSet& contacts, std::vector<T>& values) {
+void NarrowPhase::shareContacts(const ContactSet& contacts, LargeVector<T>& values) {
   const int ranks = processes_->size();
   shareOffset_.assign(static_cast<std::size_t>(ranks), 0);
   shareCount_.assign(static_cast<std::size_t>(ranks), 0);

@@ -13,6 +13,7 @@
 #include <span>
 #include <vector>
 
+#include "volpar/engine/core/large_pages.hpp"
 #include "volpar/collision/contact_patch.hpp"
 #include "volpar/collision/normal_cache.hpp"
 #include "volpar/collision/particle_contacts.hpp"
@@ -90,10 +91,10 @@ class NarrowPhase {
     std::uint32_t patchFirst = 0, patchCount = 0;  // the patches, in cache patches
   };
   struct Cache {
-    std::vector<CachedGroup> groups;                            // sorted by key
-    std::vector<std::pair<ParticleId, ParticleId>> pairs;       // per group: its contacts' (a, b)
-    std::vector<std::uint32_t> order;                           // per group: contact order, patch by patch
-    std::vector<CachedPatch> patches;
+    LargeVector<CachedGroup> groups;                            // sorted by key
+    LargeVector<std::pair<ParticleId, ParticleId>> pairs;       // per group: its contacts' (a, b)
+    LargeVector<std::uint32_t> order;                           // per group: contact order, patch by patch
+    LargeVector<CachedPatch> patches;
     void clear() {
       groups.clear();
       pairs.clear();
@@ -106,8 +107,8 @@ class NarrowPhase {
   /// The output of a chunk of the groups, merged in order afterwards. (Chunks and workers start on cache
   /// lines of their own: two threads filling neighbouring ones must not share one.)
   struct alignas(64) Output {
-    std::vector<ContactPatch> patches;
-    std::vector<std::uint32_t> contacts;
+    LargeVector<ContactPatch> patches;
+    LargeVector<std::uint32_t> contacts;
     NarrowPhaseStats stats;
     Cache cache;
     // where it goes in the merged output
@@ -117,7 +118,7 @@ class NarrowPhase {
     Output* o = nullptr;  // the chunk being worked on
     // scratch, reused across patches and steps
     std::vector<std::uint32_t> order, sizes;
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges;  // patches to solve, as ranges of `order`
+    LargeVector<std::pair<std::uint32_t, std::uint32_t>> ranges;  // patches to solve, as ranges of `order`
     PatchBuilder builder;
     PlaneSolver solver;
   };
@@ -130,7 +131,7 @@ class NarrowPhase {
                               const CachedGroup& c) const;
   /// The cache entry whose patches group g takes over (kNoMatch: none), found from `cursor` on (which it
   /// leaves at g's key, for the next group).
-  using CacheCursor = std::vector<CachedGroup>::const_iterator;
+  using CacheCursor = LargeVector<CachedGroup>::const_iterator;
   static constexpr std::uint32_t kNoMatch = 0xffffffffu;
   [[nodiscard]] std::uint32_t takenOver(const NarrowPhaseInput& in, const ContactSet& set, const ContactGroup& g,
                                         CacheCursor& cursor) const;
@@ -142,21 +143,21 @@ class NarrowPhase {
   void makePatches(const NarrowPhaseInput& in, const ContactSet& contacts, const ContactGroup& g, Worker& w,
                    PatchSet& out) const;
   PlaneSettings settings_;
-  std::vector<Worker> workers_;
+  LargeVector<Worker> workers_;
   Cache cache_;                        // what the last run computed or reused, for the next
-  std::vector<Output> chunks_;
+  LargeVector<Output> chunks_;
   // with processes: this process's chunks as bytes, every process's, and every process's chunks again
   ProcessGroup* processes_ = nullptr;
   std::vector<std::byte> mine_, all_;
-  std::vector<std::size_t> shareOffset_, shareCount_;
-  std::vector<Output> gathered_;
+  LargeVector<std::size_t> shareOffset_, shareCount_;
+  LargeVector<Output> gathered_;
   /// With processes: per group of this process's run, the cache entry whose patches it takes over (kNoMatch:
   /// none); and each process's first group (and the end), the groups divided in runs of equal estimated cost.
-  std::vector<std::uint32_t> match_;
-  std::vector<std::size_t> groupStart_;
+  LargeVector<std::uint32_t> match_;
+  LargeVector<std::size_t> groupStart_;
   /// With processes: per group a bit, set where this process keeps an entry it may take over (held_); the
   /// same bits of every process, process by process (heldBy_), and their union (heldAnywhere_).
-  std::vector<std::uint64_t> held_, heldBy_, heldAnywhere_;
+  LargeVector<std::uint64_t> held_, heldBy_, heldAnywhere_;
   bool keysInOrder_ = true;  // (with processes: whether the cacheable groups come in key order)
   std::size_t entriesReceived_ = 0;
   Cache received_;  // (with processes: the entries handed over in the last run, every process's)
@@ -177,7 +178,7 @@ class NarrowPhase {
   std::size_t gatherChunks(std::size_t count);
   /// Every process's values of `values` for the contacts of its groups.
   template <class T>
-  void shareContacts(const ContactSet& contacts, std::vector<T>& values);
+  void shareContacts(const ContactSet& contacts, LargeVector<T>& values);
 };
 
 }  // namespace volpar

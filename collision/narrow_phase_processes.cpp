@@ -27,8 +27,8 @@ void appendRange(std::vector<std::byte>& to, const T* from, std::size_t n) {
   to.insert(to.end(), data, data + n * sizeof(T));
 }
 
-template <class T>
-void readRange(const std::byte*& at, std::vector<T>& to, std::size_t n) {
+template <class T, class A>
+void readRange(const std::byte*& at, std::vector<T, A>& to, std::size_t n) {
   const std::size_t first = to.size();
   to.resize(first + n);
   if (n > 0) std::memcpy(static_cast<void*>(to.data() + first), at, n * sizeof(T));

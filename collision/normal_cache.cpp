@@ -35,7 +35,7 @@ std::size_t NormalUpdater::recompute(std::span<const ParticleId> ids, ParticleSt
   deformable_.clear();
   for (const ParticleId id : ids)
     (bodies.info[p.body[id.index()].index()].kind == BodyKind::Deformable ? deformable_ : rigid_).push_back(id);
-  const auto run = [&](const std::vector<ParticleId>& targets, const std::vector<Vec3>& positions, bool world) {
+  const auto run = [&](const std::vector<ParticleId>& targets, std::span<const Vec3> positions, bool world) {
     if (targets.empty()) return;
     // a deformable body's sheets and chains stay sheets and chains as they bend
     kinds_.clear();

@@ -87,7 +87,7 @@ void sortGroup(ContactSet& out, std::uint32_t first) {
 
 }  // namespace
 
-void ContactFinder::buildGrid(BodyGrid& g, std::span<const ParticleId> ids, const std::vector<Vec3>& coords,
+void ContactFinder::buildGrid(BodyGrid& g, std::span<const ParticleId> ids, std::span<const Vec3> coords,
                               const ParticleStore& particles) {
   Aabb box;
   g.maxRadius = 0.0;

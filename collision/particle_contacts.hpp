@@ -35,6 +35,7 @@
 #include <span>
 #include <vector>
 
+#include "volpar/engine/core/large_pages.hpp"
 #include "volpar/collision/aabb.hpp"
 #include "volpar/collision/broadphase.hpp"
 #include "volpar/engine/core/body_store.hpp"
@@ -67,8 +68,8 @@ struct ContactGroup {
 };
 
 struct ContactSet {
-  std::vector<ParticleContact> contacts;
-  std::vector<ContactGroup> groups;
+  LargeVector<ParticleContact> contacts;
+  LargeVector<ContactGroup> groups;
   void clear() {
     contacts.clear();
     groups.clear();
@@ -127,13 +128,13 @@ class ContactFinder {
     Vec3 origin = Vec3::Zero();
     double cell = 1.0;
     Eigen::Vector3i dims = Eigen::Vector3i::Ones();
-    std::vector<std::uint32_t> cellStart;
-    std::vector<ParticleId> items;
+    LargeVector<std::uint32_t> cellStart;
+    LargeVector<ParticleId> items;
     double maxRadius = 0.0;
     bool worldFrame = false;
   };
 
-  void buildGrid(BodyGrid& g, std::span<const ParticleId> ids, const std::vector<Vec3>& coords,
+  void buildGrid(BodyGrid& g, std::span<const ParticleId> ids, std::span<const Vec3> coords,
                  const ParticleStore& particles);
   void rebuildAdjacency(const ParticleStore& particles, const ConnectorStore& connectors);
   /// Visits the particles of grid body `g` whose cells overlap the world box `box` (expanded by reach).
@@ -150,8 +151,8 @@ class ContactFinder {
     std::uint32_t first = 0, count = 0;           // range in PairCache::pairs
   };
   struct PairCache {
-    std::vector<PairList> lists;                  // sorted by (a, b)
-    std::vector<std::pair<ParticleId, ParticleId>> pairs;
+    LargeVector<PairList> lists;                  // sorted by (a, b)
+    LargeVector<std::pair<ParticleId, ParticleId>> pairs;
     void clear() {
       lists.clear();
       pairs.clear();
@@ -167,7 +168,7 @@ class ContactFinder {
     std::size_t contactBase = 0, groupBase = 0, planeContactBase = 0, planeGroupBase = 0, listBase = 0, pairBase = 0;
     std::vector<std::pair<ParticleId, ParticleId>> found;
     std::array<std::vector<ParticleId>, 2> near;  // searchPair()'s scratch
-    std::vector<std::uint32_t> hits;              // a reused list's pairs within reach (bodyPair()'s scratch)
+    LargeVector<std::uint32_t> hits;              // a reused list's pairs within reach (bodyPair()'s scratch)
     std::size_t reused = 0;
     std::size_t cursor = 0;  // the last step's lists are walked in step with the (sorted) body pairs
     bool inOrder = true;     // the chunk's body pairs came in key order
@@ -202,8 +203,8 @@ class ContactFinder {
   void planeContacts(const ParticleStore& particles, const BodyStore& bodies, BodyId id, PlaneId plane,
                      const Plane& pl, ContactSet& out) const;
 
-  std::vector<BodyGrid> grids_;  // by body index
-  std::vector<double> extent_;   // by body index: farthest particle centre from the body's origin [m]
+  LargeVector<BodyGrid> grids_;  // by body index
+  LargeVector<double> extent_;   // by body index: farthest particle centre from the body's origin [m]
   /// What a search reads of each body for every pair it is in, gathered once per find() (by body index).
   struct BodyMotion {
     Vec3 velocity = Vec3::Zero();  // linear [m/s]
@@ -211,23 +212,23 @@ class ContactFinder {
     double margin = 0.0;           // the speculative margin times its largest radius [m]
     bool worldFrame = false;       // its grid is in the world frame (a deformable body)
   };
-  std::vector<BodyMotion> motion_;
+  LargeVector<BodyMotion> motion_;
   void gatherMotion(const BodyStore& bodies, ThreadPool* pool);
   bool reuse_ = true;
   PairCache cache_;              // candidate lists of the last find(), for the next
-  std::vector<Chunk> chunks_;
+  LargeVector<Chunk> chunks_;
   std::size_t reusedPairs_ = 0;
-  std::vector<BodyId> deformables_;
-  std::vector<std::uint32_t> adjacencyStart_;  // CSR over particles [P + 1]
-  std::vector<ParticleId> adjacency_;          // sorted per particle
+  LargeVector<BodyId> deformables_;
+  LargeVector<std::uint32_t> adjacencyStart_;  // CSR over particles [P + 1]
+  LargeVector<ParticleId> adjacency_;          // sorted per particle
   bool adjacencyDirty_ = true;
   double margin_ = 0.0;
   double sweepTime_ = 0.0;
-  std::vector<std::uint32_t> fill_;  // counting-sort scratch, reused
+  LargeVector<std::uint32_t> fill_;  // counting-sort scratch, reused
   // across processes: this process's share of the contacts, what travels, and what arrived (kept between steps)
   ProcessGroup* processes_ = nullptr;
   ContactSet mine_;
-  std::vector<std::pair<ParticleId, ParticleId>> ids_;
+  LargeVector<std::pair<ParticleId, ParticleId>> ids_;
   std::vector<std::byte> bytes_, gathered_;
   struct ShareHeader {
     std::uint64_t bodyGroups = 0, planeGroups = 0;  // the groups of body pairs, then of planes, lead
@@ -235,13 +236,13 @@ class ContactFinder {
   };
   struct Share {
     ShareHeader header;
-    std::vector<ContactGroup> groups;
-    std::vector<std::pair<ParticleId, ParticleId>> ids;
+    LargeVector<ContactGroup> groups;
+    LargeVector<std::pair<ParticleId, ParticleId>> ids;
   };
-  std::vector<Share> shares_;
-  std::vector<std::uint32_t> fromShare_, fromFirst_;  // per group of the whole set: its process and first id
-  std::vector<double> boundary_;  // where each process's share of the body pairs starts, as a fraction [R + 1]
-  std::vector<double> pace_;      // scratch of moveBoundaries()
+  LargeVector<Share> shares_;
+  LargeVector<std::uint32_t> fromShare_, fromFirst_;  // per group of the whole set: its process and first id
+  LargeVector<double> boundary_;  // where each process's share of the body pairs starts, as a fraction [R + 1]
+  LargeVector<double> pace_;      // scratch of moveBoundaries()
   double searchSeconds_ = 0.0;
 };
 

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "volpar/engine/core/large_pages.hpp"
 #include "volpar/engine/core/types.hpp"
 
 namespace volpar {
@@ -36,7 +37,7 @@ class ParticleGrid {
 
   std::span<const Vec3> points_;
   double cellSize_ = 1.0;
-  std::vector<Entry> entries_;  // sorted by (key, index)
+  LargeVector<Entry> entries_;  // sorted by (key, index)
 };
 
 }  // namespace volpar

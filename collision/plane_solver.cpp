@@ -1115,7 +1115,7 @@ bool PlaneSolver::lookAhead(const NarrowPhaseInput& in, bool single, double sink
 }
 
 void PlaneSolver::describe(Side& side) const {
-  const std::vector<Vec3>& points = side.points;
+  const auto& points = side.points;
   const std::size_t n = points.size();
   side.centroid = Vec3::Zero();
   for (const Vec3& x : points) side.centroid += x;
@@ -1166,7 +1166,7 @@ PlaneCase PlaneSolver::classify(const NarrowPhaseInput& in, const Side& a, const
 }
 
 void PlaneSolver::paperCandidates(const NarrowPhaseInput& in, const Vec3& contactDifference, PlaneCase c) {
-  std::vector<Candidate>& cands = candidates_;
+  auto& cands = candidates_;
   cands.clear();
   auto add = [&](const Vec3& v, NormalSource s) {
     const double len = v.norm();

@@ -242,7 +242,7 @@ void ContactSolver::spread(std::size_t part) {
   // pair's first point, then every pair's second, and so on. Neighbouring rows then mostly touch other
   // bodies, and the processor overlaps their work instead of waiting for each row's result
   std::vector<std::uint32_t>& start = rankStart_[part];
-  const std::vector<std::uint32_t>& from = scratch_;
+  const auto& from = scratch_;
   std::uint32_t ranks = 0;
   for (std::size_t k = parts_[part]; k < parts_[part + 1]; ++k) ranks = std::max(ranks, rank_[from[k]] + 1);
   start.assign(ranks + 1, 0);
@@ -604,7 +604,7 @@ void ContactSolver::remember() {
   table_.assign(size, kEmpty);
   tableBits_ = std::countr_zero(size);
   for (std::size_t part = 0; part < partCount(); ++part) {
-    const std::vector<std::uint32_t>& sorted = batches_[part].sorted;
+    const auto& sorted = batches_[part].sorted;
     for (std::size_t j = 0; j < sorted.size(); ++j) {
       if (sorted[j] == kNoRow) continue;
       const std::size_t k = posBase_[part] + j;
@@ -1149,7 +1149,7 @@ void ContactSolver::shareLanes() {
   lanesMine_.clear();
   for (std::size_t k = partsOf_.start[mine]; k < partsOf_.start[mine + 1]; ++k) {
     const std::uint32_t part = partsOf_.index[k];
-    const std::vector<std::uint32_t>& sorted = batches_[part].sorted;
+    const auto& sorted = batches_[part].sorted;
     appendBytes(lanesMine_, sorted);
     keysScratch_.clear();
     for (std::size_t j = 0; j < sorted.size(); ++j)
@@ -1161,7 +1161,7 @@ void ContactSolver::shareLanes() {
   for (std::size_t r = 0; r < static_cast<std::size_t>(ranks); ++r) {
     for (std::size_t k = partsOf_.start[r]; k < partsOf_.start[r + 1]; ++k) {
       const std::uint32_t part = partsOf_.index[k];
-      std::vector<std::uint32_t>& sorted = r == mine ? lanesScratch_ : batches_[part].sorted;
+      auto& sorted = r == mine ? lanesScratch_ : batches_[part].sorted;
       readBytes(at, sorted);
       readBytes(at, keysScratch_);
       if (r == mine) continue;
@@ -1185,7 +1185,7 @@ void ContactSolver::planEndHandovers() {
     points_.start[r] = points_.index.size();
     for (std::size_t k = partsOf_.start[r]; k < partsOf_.start[r + 1]; ++k) {
       const std::uint32_t part = partsOf_.index[k];
-      const std::vector<std::uint32_t>& sorted = batches_[part].sorted;
+      const auto& sorted = batches_[part].sorted;
       for (std::size_t j = 0; j < sorted.size(); ++j)
         if (sorted[j] != kNoRow) lanes_.index.push_back(static_cast<std::uint32_t>(posBase_[part] + j));
       points_.index.insert(points_.index.end(), order_.begin() + static_cast<std::ptrdiff_t>(parts_[part]),
@@ -1197,7 +1197,7 @@ void ContactSolver::planEndHandovers() {
 }
 
 template <class... T>
-void ContactSolver::handOver(const Handover& h, std::vector<T>&... arrays) {
+void ContactSolver::handOver(const Handover& h, LargeVector<T>&... arrays) {
   if (h.index.empty()) return;  // (the same lists on every process: none of them shares)
   const int ranks = processes_->size(), me = processes_->rank();
   constexpr std::size_t per = (sizeof(T) + ...);

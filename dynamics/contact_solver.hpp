@@ -32,6 +32,7 @@
 #include <span>
 #include <vector>
 
+#include "volpar/engine/core/large_pages.hpp"
 #include "volpar/engine/core/process_group.hpp"
 #include "volpar/engine/core/state_archive.hpp"
 #include "volpar/engine/core/thread_pool.hpp"
@@ -185,11 +186,11 @@ class ContactSolver {
   /// colour to a batch; the rows no colour could take (a body in more than 64 rows) follow, one to a batch,
   /// solved one after another.
   struct PartBatches {
-    std::vector<Batch> batches;
+    LargeVector<Batch> batches;
     std::size_t restBegin = 0;               // the first one-row batch
-    std::vector<std::uint8_t> colour;        // per row of the part (64: none)
+    LargeVector<std::uint8_t> colour;        // per row of the part (64: none)
     std::array<std::uint32_t, 65> start{};   // (counting sort by colour)
-    std::vector<std::uint32_t> sorted;       // rows in batch order, four to a batch (kNoRow: padding)
+    LargeVector<std::uint32_t> sorted;       // rows in batch order, four to a batch (kNoRow: padding)
   };
   /// The normal impulses of each small island of bodies whose masses differ widely, solved exactly (a
   /// dense linear complementarity problem over its normal rows, by active sets) after the warm start; the
@@ -239,30 +240,30 @@ class ContactSolver {
   void remember();
 
   int depth_ = 1;                       // the tree's leaves: 2^depth_
-  std::vector<std::size_t> levelStart_;  // per level (0: the root): its first part
-  std::vector<PartBatches> batches_;    // per part
+  LargeVector<std::size_t> levelStart_;  // per level (0: the root): its first part
+  LargeVector<PartBatches> batches_;    // per part
   /// per level: the colours each slot's rows took (a node clears its own slots' entries)
-  std::vector<std::vector<std::uint64_t>> used_;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> rowSlots_;  // per row: its bodies' slots
+  LargeVector<std::vector<std::uint64_t>> used_;
+  LargeVector<std::pair<std::uint32_t, std::uint32_t>> rowSlots_;  // per row: its bodies' slots
   /// Per batch lane, each part's batches from posBase_[part]: the warm-starting key (keys_), this step's
   /// impulses (nextCache_) and the last step's (cache_, cacheKeys_)
-  std::vector<std::size_t> posBase_;
-  std::vector<std::uint64_t> keys_;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> ab_;  // per input point: its bodies
-  std::vector<std::uint32_t> order_;  // per row: the index of its input point
-  std::vector<std::uint32_t> rank_, scratch_;  // (ordering scratch)
-  std::vector<std::vector<std::uint32_t>> rankStart_;  // per part (spread() runs for several parts at once)
-  std::vector<std::size_t> parts_;     // per part: its first row (and the end)
-  std::vector<std::uint32_t> leafOf_;  // per solver body: its leaf
-  std::vector<std::size_t> leafStart_;  // per leaf: its first body in byLeaf_ (and the end)
-  std::vector<std::uint32_t> slot_;    // per solver body: its entry in the velocity arrays
-  std::vector<std::uint32_t> leafNext_;  // (ordering scratch: per leaf, its next slot)
-  std::vector<std::size_t> partNext_;    // (ordering scratch: per part, its next row)
-  std::vector<std::uint32_t> fixedSlot_;  // per part: the fixed side's entry
-  std::vector<std::uint32_t> slotBegin_, slotEnd_;  // per part: the range of its bodies' slots
-  std::vector<std::uint8_t> isFixed_;  // per slot: a part's fixed side
+  LargeVector<std::size_t> posBase_;
+  LargeVector<std::uint64_t> keys_;
+  LargeVector<std::pair<std::uint32_t, std::uint32_t>> ab_;  // per input point: its bodies
+  LargeVector<std::uint32_t> order_;  // per row: the index of its input point
+  LargeVector<std::uint32_t> rank_, scratch_;  // (ordering scratch)
+  LargeVector<std::vector<std::uint32_t>> rankStart_;  // per part (spread() runs for several parts at once)
+  LargeVector<std::size_t> parts_;     // per part: its first row (and the end)
+  LargeVector<std::uint32_t> leafOf_;  // per solver body: its leaf
+  LargeVector<std::size_t> leafStart_;  // per leaf: its first body in byLeaf_ (and the end)
+  LargeVector<std::uint32_t> slot_;    // per solver body: its entry in the velocity arrays
+  LargeVector<std::uint32_t> leafNext_;  // (ordering scratch: per leaf, its next slot)
+  LargeVector<std::size_t> partNext_;    // (ordering scratch: per part, its next row)
+  LargeVector<std::uint32_t> fixedSlot_;  // per part: the fixed side's entry
+  LargeVector<std::uint32_t> slotBegin_, slotEnd_;  // per part: the range of its bodies' slots
+  LargeVector<std::uint8_t> isFixed_;  // per slot: a part's fixed side
   std::size_t slots_ = 0;
-  std::vector<std::pair<double, std::uint32_t>> byLeaf_;  // bodies, leaf by leaf (sort keys: the cut's axis)
+  LargeVector<std::pair<double, std::uint32_t>> byLeaf_;  // bodies, leaf by leaf (sort keys: the cut's axis)
   SpinBarrier barrier_;
   /// How the threads share out a level's nodes (see solve()): per worker, the sweep's number and the front
   /// and back of the nodes of its range still to take (a cache line each); and the sweeps over a node that
@@ -277,21 +278,21 @@ class ContactSolver {
   std::unique_ptr<Claims> claims_ = std::make_unique<Claims>();
   std::uint32_t phase_ = 0;  // the last solve's last sweep
   // velocities of the solver bodies and of each part's fixed side (always zero)
-  std::vector<V4> v_, w_, pv_, pw_;
+  LargeVector<V4> v_, w_, pv_, pw_;
   /// per slot: the sums of the impulses and of their moments about the body's centre, in double, from which
   /// the velocities are rebuilt at the end
-  std::vector<Vec3> dp_, dl_;
-  std::vector<std::size_t> started_;  // per part: rows warm started
-  std::vector<double> normalSum_;     // per part: the normal impulses
-  std::vector<std::uint8_t> partHeavy_;  // per part: whether one of its rows joins a heavy pair (heavyPair())
+  LargeVector<Vec3> dp_, dl_;
+  LargeVector<std::size_t> started_;  // per part: rows warm started
+  LargeVector<double> normalSum_;     // per part: the normal impulses
+  LargeVector<std::uint8_t> partHeavy_;  // per part: whether one of its rows joins a heavy pair (heavyPair())
   std::array<std::vector<std::uint8_t>, 2> moved_;  // per part: whether a position sweep moved (two sweeps' worth)
   ProcessGroup* processes_ = nullptr;
-  std::vector<std::size_t> shareOffset_, shareCount_;  // (the shares' ranges in bytes, per process)
+  LargeVector<std::size_t> shareOffset_, shareCount_;  // (the shares' ranges in bytes, per process)
   /// With processes: entries of some arrays that each process hands the others, process r's
   /// index[start[r]] up to index[start[r + 1]] (the same lists on every process, made from the same rows).
   struct Handover {
-    std::vector<std::uint32_t> index;
-    std::vector<std::size_t> start;
+    LargeVector<std::uint32_t> index;
+    LargeVector<std::size_t> start;
   };
   /// Plans this solve's handovers (below) from the tree and the rows.
   void planHandovers();
@@ -313,44 +314,44 @@ class ContactSolver {
   void planSolve(std::span<const SolverBody> bodies);
   bool divideSetUp_ = false;  // whether this solve's processes each prepare their own nodes alone
   bool planned_ = false;      // plan() made the next solve's plan
-  std::vector<std::uint8_t> pointsRead_;
+  LargeVector<std::uint8_t> pointsRead_;
   std::vector<std::byte> lanesMine_, lanesAll_;
-  std::vector<std::uint32_t> lanesScratch_;
-  std::vector<std::uint64_t> keysScratch_;
+  LargeVector<std::uint32_t> lanesScratch_;
+  LargeVector<std::uint64_t> keysScratch_;
   /// Hands every process the values the others hold at their entries of `h`, of each array in turn.
   template <class... T>
-  void handOver(const Handover& h, std::vector<T>&... arrays);
+  void handOver(const Handover& h, LargeVector<T>&... arrays);
   /// per level: the slots of the bodies whose rows lie in the nodes of more than one process, that this
   /// level's nodes touch (each such body's velocity, after every level that changes it, goes to every
   /// process, so the next node to read it reads its last value whichever process solves that node)
-  std::vector<Handover> boundary_;
+  LargeVector<Handover> boundary_;
   Handover interior_;  // the slots of the bodies the nodes of one process alone touch, handed over at the end
   Handover partsOf_, lanes_, points_;  // each process's parts, their real lanes and their rows' points
   Handover eachProcess_;               // one entry per process (its own number)
-  std::vector<std::int32_t> slotProcess_;  // (per slot: the process whose nodes touch it; -1 none, -2 several)
-  std::vector<std::uint8_t> listed_;       // (per slot: the level + 1 whose list holds it)
-  std::vector<std::size_t> interiorNext_;  // (per process: its next entry of interior_)
-  std::vector<std::uint8_t> movedBy_;      // per process: whether a node of its moved in a position sweep
+  LargeVector<std::int32_t> slotProcess_;  // (per slot: the process whose nodes touch it; -1 none, -2 several)
+  LargeVector<std::uint8_t> listed_;       // (per slot: the level + 1 whose list holds it)
+  LargeVector<std::size_t> interiorNext_;  // (per process: its next entry of interior_)
+  LargeVector<std::uint8_t> movedBy_;      // per process: whether a node of its moved in a position sweep
   std::vector<std::byte> handoverBytes_;
-  std::vector<std::uint64_t> cacheKeys_;
-  std::vector<Cached> cache_;
-  std::vector<Cached> nextCache_;
-  std::vector<std::uint32_t> table_;      // lanes of the last step; a power of two long, at most half full
+  LargeVector<std::uint64_t> cacheKeys_;
+  LargeVector<Cached> cache_;
+  LargeVector<Cached> nextCache_;
+  LargeVector<std::uint32_t> table_;      // lanes of the last step; a power of two long, at most half full
   int tableBits_ = 0;
   // solveHeavyIslands()'s scratch: per slot its island (union-find); the rows (part, batch, lane) grouped by
   // island; one island's dense problem
-  std::vector<std::uint32_t> islandOf_;
-  std::vector<std::uint64_t> islandRows_;
-  std::vector<std::uint32_t> islandStart_, islandFill_;
-  std::vector<std::uint8_t> islandHeavy_;
-  std::vector<double> islandA_, islandB_, islandLambda_, islandU0_;
-  std::vector<std::uint8_t> islandActive_;
+  LargeVector<std::uint32_t> islandOf_;
+  LargeVector<std::uint64_t> islandRows_;
+  LargeVector<std::uint32_t> islandStart_, islandFill_;
+  LargeVector<std::uint8_t> islandHeavy_;
+  LargeVector<double> islandA_, islandB_, islandLambda_, islandU0_;
+  LargeVector<std::uint8_t> islandActive_;
   /// The active set's system and its factors (up to 128 x 128: kept off the stack, made with the first
   /// island solved and reused).
   struct IslandSystem;
   std::unique_ptr<IslandSystem> islandSystem_;
   std::size_t heavyIslandsSolved_ = 0;
-  std::vector<Vec3> impulses_;
+  LargeVector<Vec3> impulses_;
   double totalNormalImpulse_ = 0.0;
   std::size_t warmStarted_ = 0;
 };

@@ -41,7 +41,7 @@ Eigen::Vector4f narrow(const Vec3& x) {
 }
 Vec3 wide(const Eigen::Vector4f& x) { return x.head<3>().cast<double>(); }
 
-std::uint32_t findRoot(std::vector<std::uint32_t>& parent, std::uint32_t i) {
+std::uint32_t findRoot(LargeVector<std::uint32_t>& parent, std::uint32_t i) {
   while (parent[i] != i) {
     parent[i] = parent[parent[i]];  // (path halving)
     i = parent[i];
@@ -73,7 +73,7 @@ void ContactSolver::solveHeavyIslands() {
   const auto isFixed = [&](std::uint32_t s) { return isFixed_[s] != 0; };
   const auto forEachRow = [&](const auto& f) {
     for (std::size_t part = 0; part < partCount(); ++part) {
-      const std::vector<Batch>& batches = batches_[part].batches;
+      const auto& batches = batches_[part].batches;
       for (std::size_t j = 0; j < batches.size(); ++j)
         for (std::size_t l = 0; l < 4; ++l)
           if (batches[j].row[l] != kNoRow) f(part, j, l, batches[j]);

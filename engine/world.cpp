@@ -411,7 +411,7 @@ namespace {
 /// normal, the one farthest from it, the one farthest from their line, and the one that adds most area on
 /// the far side. Returns positions in idx; count must be above 4.
 std::array<std::uint32_t, 4> manifoldOfFour(const ContactSet& cs, const std::uint32_t* idx, std::uint32_t count,
-                                            const std::vector<double>& depth) {
+                                            std::span<const double> depth) {
   std::array<std::uint32_t, 4> reduced{};
   std::size_t chosen = 0;
   const auto pointOf = [&](std::uint32_t k) -> const Vec3& { return cs.contacts[idx[k]].point; };

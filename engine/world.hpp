@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "volpar/engine/core/large_pages.hpp"
 #include "volpar/collision/broadphase.hpp"
 #include "volpar/collision/narrow_phase.hpp"
 #include "volpar/collision/normal_cache.hpp"
@@ -94,7 +95,7 @@ struct GlueDef {
   /// Particles of different bodies whose centres are closer than reach x (r_a + r_b) are bonded [-]
   double reach = 1.5;
   /// If not empty, only these pairs of the bodies are glued to each other (indices into the bodies given)
-  std::vector<std::array<std::uint32_t, 2>> pairs;
+  LargeVector<std::array<std::uint32_t, 2>> pairs;
 };
 
 /// Energies of the whole world [J].
@@ -256,7 +257,7 @@ class World {
   NormalUpdater normalUpdater_;
   PolytopeCores cores_;                           // the rigid and static bodies' whole polytope cores
   std::vector<std::uint8_t> opened_;              // [P] 1 where a particle lost a connector (a crack face)
-  std::vector<Vec3> connectorDirection_;          // [C] deformable connectors: direction in the body frame
+  LargeVector<Vec3> connectorDirection_;          // [C] deformable connectors: direction in the body frame
                                                   // when their particles' normals were last estimated
   Broadphase broadphase_;
   ContactFinder contactFinder_;
@@ -267,14 +268,14 @@ class World {
   NarrowPhase narrowPhase_;
   PatchSet patches_;
   ContactSolver solver_;
-  std::vector<SolverBody> solverBodies_;
-  std::vector<ContactPointInput> contactPoints_;
-  std::vector<std::uint32_t> bodySolverIndex_;      // [B], kFixed when not in the solver this step
-  std::vector<std::uint32_t> particleSolverIndex_;  // [P], for particles of deformable bodies
-  std::vector<BodyId> solverBodyOwner_;             // per solver body: its rigid body (invalid: a particle)
-  std::vector<ParticleId> solverParticleOwner_;     // per solver body: its particle (invalid: a rigid body)
-  std::vector<Vec3> particleShift_;                 // [P] pseudo displacement of deformable particles
-  std::vector<DeformableContact> deformableContacts_;
+  LargeVector<SolverBody> solverBodies_;
+  LargeVector<ContactPointInput> contactPoints_;
+  LargeVector<std::uint32_t> bodySolverIndex_;      // [B], kFixed when not in the solver this step
+  LargeVector<std::uint32_t> particleSolverIndex_;  // [P], for particles of deformable bodies
+  LargeVector<BodyId> solverBodyOwner_;             // per solver body: its rigid body (invalid: a particle)
+  LargeVector<ParticleId> solverParticleOwner_;     // per solver body: its particle (invalid: a rigid body)
+  LargeVector<Vec3> particleShift_;                 // [P] pseudo displacement of deformable particles
+  LargeVector<DeformableContact> deformableContacts_;
   /// How a patch becomes contact points, as buildContactPoints() decides it for every patch at once (compact:
   /// the pass that names the solver bodies reads these alone, patch after patch)
   struct PatchPoints {
@@ -283,31 +284,31 @@ class World {
     std::uint8_t mode = 0;     ///< how they do
     BodyKind kindA = BodyKind::Static, kindB = BodyKind::Static;  ///< its sides (a plane's: static)
   };
-  std::vector<PatchPoints> patchPoints_;            // per patch
-  std::vector<std::uint32_t> pointFirst_;           // per patch: its first contact point (and the end)
-  std::vector<std::uint32_t> keptContacts_;         // as PatchSet::contacts: each patch's contacts that become points
+  LargeVector<PatchPoints> patchPoints_;            // per patch
+  LargeVector<std::uint32_t> pointFirst_;           // per patch: its first contact point (and the end)
+  LargeVector<std::uint32_t> keptContacts_;         // as PatchSet::contacts: each patch's contacts that become points
   /// per worker, per particle: whether it touches in the patch being made into points (0 between patches)
-  std::vector<std::vector<std::uint8_t>> touchingParticle_;
-  std::vector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles
+  LargeVector<std::vector<std::uint8_t>> touchingParticle_;
+  LargeVector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles
   /// with processes: per contact point, its solver bodies (what the solver plans its division from, before
   /// the points of other processes' nodes are left unmade)
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> pointBodies_;
+  LargeVector<std::pair<std::uint32_t, std::uint32_t>> pointBodies_;
   ProcessGroup* processes_ = nullptr;
   struct alignas(64) ContactTally {  // (one per worker, each on a cache line of its own)
     std::size_t touching = 0;
     double deepest = 0.0;
   };
-  std::vector<ContactTally> contactTally_;
+  LargeVector<ContactTally> contactTally_;
 
   // breakage
   std::vector<std::vector<ConnectorId>> bodyConnectors_;    // [B]
   /// Each body's kind and material as in bodies_.info, kept compact for the lookups of every patch in the
   /// step (a BodyInfo takes several cache lines); written wherever a body is added or restored.
-  std::vector<BodyKind> bodyKinds_;            // [B]
-  std::vector<MaterialId> bodyMaterials_;      // [B]
-  std::vector<std::unique_ptr<RodForces>> rodForces_;       // [B], for rigid bodies with breakable rods
-  std::vector<std::unique_ptr<BondLoads>> bondLoads_;       // [B], for rigid bodies with breakable bonds
-  std::vector<BodyId> breakableRigid_;
+  LargeVector<BodyKind> bodyKinds_;            // [B]
+  LargeVector<MaterialId> bodyMaterials_;      // [B]
+  LargeVector<std::unique_ptr<RodForces>> rodForces_;       // [B], for rigid bodies with breakable rods
+  LargeVector<std::unique_ptr<BondLoads>> bondLoads_;       // [B], for rigid bodies with breakable bonds
+  LargeVector<BodyId> breakableRigid_;
   bool anyRollingResistance_ = false;  // (a material resists rolling)
   std::vector<Vec3> loads_;                                 // [P] loads on particles of breakable bodies [N]
   std::vector<double> rodForceScratch_;
@@ -320,26 +321,26 @@ class World {
     double energy = 0.0;
     BreakMode mode = BreakMode::Tension;
   };
-  std::vector<Overload> overloaded_;  // this pass's overloaded connectors of one body
-  std::vector<std::size_t> brokenEntries_;
-  std::vector<double> deformableForces_;                    // [C] XPBD connector forces [N]
+  LargeVector<Overload> overloaded_;  // this pass's overloaded connectors of one body
+  LargeVector<std::size_t> brokenEntries_;
+  LargeVector<double> deformableForces_;                    // [C] XPBD connector forces [N]
   std::vector<BreakEvent> breakEvents_;
   double breakageEnergy_ = 0.0;
   std::unique_ptr<ThreadPool> pool_;  // null with one thread
-  std::vector<Vec3> deformableContactImpulses_;  // per deformable contact: what its particle got against a rigid body
-  std::vector<Vec3> deformableContactMoments_;   // (and the angular momentum about the origin)
-  std::vector<BodyId> touchedRigid_;
-  std::vector<ParticleId> seeds_, ringScratch_;
-  std::vector<std::uint32_t> ringMark_;
+  LargeVector<Vec3> deformableContactImpulses_;  // per deformable contact: what its particle got against a rigid body
+  LargeVector<Vec3> deformableContactMoments_;   // (and the angular momentum about the origin)
+  LargeVector<BodyId> touchedRigid_;
+  LargeVector<ParticleId> seeds_, ringScratch_;
+  LargeVector<std::uint32_t> ringMark_;
   std::uint32_t ringStamp_ = 0;
   bool contactsStale_ = true;
   double maxRadius_ = 0.0;
 
   // cached index lists, rebuilt when bodies are added
-  std::vector<BodyId> rigidBodies_;
-  std::vector<BodyId> deformableBodies_;
-  std::vector<ParticleId> deformableParticles_;
-  std::vector<ConnectorId> deformableConnectors_;
+  LargeVector<BodyId> rigidBodies_;
+  LargeVector<BodyId> deformableBodies_;
+  LargeVector<ParticleId> deformableParticles_;
+  LargeVector<ConnectorId> deformableConnectors_;
 
   // scratch reused across steps (no allocation inside step())
   DeformableScratch scratch_;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <span>
 #include <string>
 
 #include "volpar/collision/collision_state.hpp"
@@ -11,6 +12,12 @@
 namespace volpar {
 
 namespace {
+
+/// Copies a checkpoint's array into a store's (which may take its memory from another allocator).
+template <class To, class From>
+void assignFrom(To& to, const From& from) {
+  to.assign(from.begin(), from.end());
+}
 
 constexpr std::uint32_t kNone = 0xffffffffu;
 
@@ -284,16 +291,16 @@ Status World::restoreState(const StateArchive& archive) {
 
   // particles
   ParticleStore p;
-  p.position = r.vec3("particles/position", np);
-  p.velocity = r.vec3("particles/velocity", np);
-  p.local = r.vec3("particles/local", np);
-  p.radius = r.get<double>("particles/radius", 1, np);
-  p.mass = r.get<double>("particles/mass", 1, np);
-  p.invMass = r.get<double>("particles/inverse_mass", 1, np);
-  p.ownInertia = r.get<double>("particles/own_inertia", 1, np);
+  assignFrom(p.position, r.vec3("particles/position", np));
+  assignFrom(p.velocity, r.vec3("particles/velocity", np));
+  assignFrom(p.local, r.vec3("particles/local", np));
+  assignFrom(p.radius, r.get<double>("particles/radius", 1, np));
+  assignFrom(p.mass, r.get<double>("particles/mass", 1, np));
+  assignFrom(p.invMass, r.get<double>("particles/inverse_mass", 1, np));
+  assignFrom(p.ownInertia, r.get<double>("particles/own_inertia", 1, np));
   const std::vector<std::uint32_t> particleBody = r.get<std::uint32_t>("particles/body", 1, np);
   const std::vector<std::uint32_t> normalIndex = r.get<std::uint32_t>("particles/normal_index", 1, np);
-  p.flags = r.get<std::uint8_t>("particles/flags", 1, np);
+  assignFrom(p.flags, r.get<std::uint8_t>("particles/flags", 1, np));
   std::vector<std::uint8_t> opened = r.get<std::uint8_t>("particles/opened", 1, np);
   r.checkIndices(particleBody, nb, "particles' bodies");
 
@@ -305,14 +312,14 @@ Status World::restoreState(const StateArchive& archive) {
     r.fail("the checkpoint's connectors are not the scene's (another scene, seed or version)");
   // what a run never changes must be the scene's; the state must be finite and within the world's bounds
   // (a step could not survive it)
-  const auto sameBits = [](const std::vector<double>& x, const std::vector<double>& y) {
+  const auto sameBits = [](std::span<const double> x, std::span<const double> y) {
     return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(double)) == 0);
   };
   if (r.ok() && (!sameBits(p.radius, particles_.radius) || !sameBits(p.mass, particles_.mass) ||
                  !sameBits(p.ownInertia, particles_.ownInertia) || !sameBits(p.invMass, particles_.invMass)))
     r.fail("the checkpoint's particles have other radii or masses than the scene's");
   constexpr double kWorldLimit = 1e9;  // [m], as World::addBody
-  const auto bounded = [&](const std::vector<Vec3>& xs) {
+  const auto bounded = [&](std::span<const Vec3> xs) {
     return std::all_of(xs.begin(), xs.end(), [&](const Vec3& x) { return x.allFinite() && x.cwiseAbs().maxCoeff() <= kWorldLimit; });
   };
   if (r.ok() && (!bounded(p.position) || !bounded(p.local) || !bounded(p.velocity) || !bounded(deformableDirection)))

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "volpar/engine/core/large_pages.hpp"
 #include "volpar/engine/core/ids.hpp"
 #include "volpar/engine/core/source_shape.hpp"
 #include "volpar/engine/core/types.hpp"
@@ -65,8 +66,8 @@ struct BodyInfo {
 };
 
 struct BodyStore {
-  std::vector<BodyState> state;  ///< [B]
-  std::vector<BodyInfo> info;    ///< [B]
+  LargeVector<BodyState> state;  ///< [B]
+  LargeVector<BodyInfo> info;    ///< [B]
 
   [[nodiscard]] std::size_t size() const { return state.size(); }
 

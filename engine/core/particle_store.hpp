@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "volpar/engine/core/ids.hpp"
+#include "volpar/engine/core/large_pages.hpp"
 #include "volpar/engine/core/types.hpp"
 
 namespace volpar {
@@ -26,16 +27,16 @@ enum ParticleFlag : std::uint8_t {
 inline constexpr std::uint8_t kParticleSharp = kParticleEdge | kParticleCorner | kParticleLine;
 
 struct ParticleStore {
-  std::vector<Vec3> position;          ///< world centre [m], [P]
-  std::vector<Vec3> velocity;          ///< world velocity [m/s], [P]
-  std::vector<Vec3> local;             ///< centre in the owning body's principal frame [m], [P] (rigid/static)
-  std::vector<double> radius;          ///< [m], [P]
-  std::vector<double> mass;            ///< [kg], [P]
-  std::vector<double> invMass;         ///< [1/kg], [P]; 0 for particles of static bodies
-  std::vector<double> ownInertia;      ///< moment of inertia about its centre [kg m^2], [P] (mass_properties.hpp)
-  std::vector<BodyId> body;            ///< owning body, [P]; changes only when a body breaks apart
-  std::vector<std::int32_t> normalIndex;  ///< index into the normal cache, -1 for interior particles, [P]
-  std::vector<std::uint8_t> flags;     ///< ParticleFlag bits, [P]
+  LargeVector<Vec3> position;          ///< world centre [m], [P]
+  LargeVector<Vec3> velocity;          ///< world velocity [m/s], [P]
+  LargeVector<Vec3> local;             ///< centre in the owning body's principal frame [m], [P] (rigid/static)
+  LargeVector<double> radius;          ///< [m], [P]
+  LargeVector<double> mass;            ///< [kg], [P]
+  LargeVector<double> invMass;         ///< [1/kg], [P]; 0 for particles of static bodies
+  LargeVector<double> ownInertia;      ///< moment of inertia about its centre [kg m^2], [P] (mass_properties.hpp)
+  LargeVector<BodyId> body;            ///< owning body, [P]; changes only when a body breaks apart
+  LargeVector<std::int32_t> normalIndex;  ///< index into the normal cache, -1 for interior particles, [P]
+  LargeVector<std::uint8_t> flags;     ///< ParticleFlag bits, [P]
 
   [[nodiscard]] std::size_t size() const { return radius.size(); }
 

@@ -26,21 +26,21 @@ class ProcessGroup {
 // A stage's results as bytes for gather(): vectors (their length, then their elements) and single values,
 // read back in the order written (each process's bytes then tell where they end). (Plain data only: the processes are copies of one program on one kind of
 // machine, so the bytes mean the same on every one.)
-template <class T>
-void appendBytes(std::vector<std::byte>& to, const std::vector<T>& v) {
+template <class T, class A, class B>
+void appendBytes(std::vector<std::byte, B>& to, const std::vector<T, A>& v) {
   const std::uint64_t n = v.size();
   const auto* size = reinterpret_cast<const std::byte*>(&n);
   to.insert(to.end(), size, size + sizeof n);
   const auto* data = reinterpret_cast<const std::byte*>(v.data());
   to.insert(to.end(), data, data + n * sizeof(T));
 }
-template <class T>
-void appendBytes(std::vector<std::byte>& to, const T& value) {
+template <class T, class B>
+void appendBytes(std::vector<std::byte, B>& to, const T& value) {
   const auto* data = reinterpret_cast<const std::byte*>(&value);
   to.insert(to.end(), data, data + sizeof(T));
 }
-template <class T>
-void readBytes(const std::byte*& from, std::vector<T>& v) {
+template <class T, class A>
+void readBytes(const std::byte*& from, std::vector<T, A>& v) {
   std::uint64_t n = 0;
   std::memcpy(&n, from, sizeof n);
   from += sizeof n;

@@ -142,7 +142,7 @@ void writePlaneGrid(std::ostream& x, const XdmfFrames& f) {
 
 }  // namespace
 
-void XdmfBounds::add(const std::vector<Vec3>& x) {
+void XdmfBounds::add(std::span<const Vec3> x) {
   for (const Vec3& p : x) {
     if (!p.allFinite()) continue;
     for (std::size_t k = 0; k < 3; ++k) {

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -24,7 +25,7 @@ struct XdmfBounds {
   std::array<double, 3> lo{0.0, 0.0, 0.0}, hi{0.0, 0.0, 0.0};
   bool empty = true;
   /// Grows the box to take in `x`'s finite points.
-  void add(const std::vector<Vec3>& x);
+  void add(std::span<const Vec3> x);
 };
 
 struct XdmfFrames {

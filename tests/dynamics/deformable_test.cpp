@@ -74,7 +74,7 @@ bodies:
     connectors: {springs: {stiffness: 5000, damping: 1}}
     velocity: [0, 0, 2]
 )");
-  const std::vector<Vec3> start = w.particles().position;
+  const auto start = w.particles().position;
   for (int i = 0; i < 240; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
   // uniform gravity: every particle moves alike, the springs stay at rest length
   const Vec3 shift = w.particles().position[0] - start[0];
@@ -207,7 +207,7 @@ TEST(Deformable, BridgeCarriesTheCrateDroppedOnIt) {
   World w = test::worldFromString(std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()),
                                   "examples/bridge.yaml");
   const BodyInfo& plank = w.bodies().info[0];
-  const std::vector<Vec3> start = w.particles().position;
+  const auto start = w.particles().position;
   for (int i = 0; i < 960; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
   // the pinned ends hold, the middle sags
   std::size_t pinned = 0;

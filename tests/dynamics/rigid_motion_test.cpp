@@ -25,7 +25,7 @@ bodies:
 )");
   const Vec3 x0(1, 2, 3), v0(0.5, -0.25, 4), g(0, 0, -9.81);
   const double h = 0.01;
-  const std::vector<Vec3> start = w.particles().position;
+  const auto start = w.particles().position;
   for (int n = 1; n <= 300; ++n) {
     ASSERT_EQ(w.step(), StepStatus::Ok);
     const double t = n * h;

@@ -112,7 +112,7 @@ bodies:
     shape: {box: {size: [2, 2, 0.2]}}
     fill: {radius: 0.05}
 )");
-  const std::vector<Vec3> before = w.particles().position;
+  const auto before = w.particles().position;
   for (int i = 0; i < 100; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
   EXPECT_EQ(w.particles().position, before);
   EXPECT_EQ(w.bodies().state[0].invMass, 0.0);
@@ -322,7 +322,7 @@ bodies:
     pinned += end ? 1 : 0;
   }
   EXPECT_EQ(pinned, 4u);
-  const std::vector<Vec3> before = w.particles().position;
+  const auto before = w.particles().position;
   for (int i = 0; i < 50; ++i) ASSERT_EQ(w.step(), StepStatus::Ok);
   for (std::size_t i = 0; i < w.particles().size(); ++i)
     if (w.particles().invMass[i] == 0.0) EXPECT_EQ(w.particles().position[i], before[i]);

@@ -6,7 +6,8 @@
 
 namespace volpar::test {
 
-/// Allocations the program has made so far, on any thread.
+/// Allocations the program has made so far, on any thread (through operator new, or blocks of the
+/// large-page pool, engine/core/large_pages.hpp).
 [[nodiscard]] long allocationCount();
 
 }  // namespace volpar::test

@@ -384,7 +384,7 @@ struct ContactSearch {
 /// Narrow phase on a sphere pair the broadphase reported; `body` (when set) skips pairs of one body.
 struct SphereCollector {
   fcl::CollisionRequestd request;  // yes/no
-  const std::vector<BodyId>* body = nullptr;
+  const volpar::LargeVector<BodyId>* body = nullptr;
   std::vector<IdPair> pairs;
 };
 
@@ -545,7 +545,8 @@ struct FclPile {
   fcl::DynamicAABBTreeCollisionManagerd manager;
   SphereCollector found;
 
-  explicit FclPile(const volpar::World& w) : centres(w.particles().position), objects(sphere, centres) {
+  explicit FclPile(const volpar::World& w)
+      : centres(w.particles().position.begin(), w.particles().position.end()), objects(sphere, centres) {
     found.body = &w.particles().body;
     manager.registerObjects(objects.raw);
     manager.setup();
