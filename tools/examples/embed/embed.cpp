@@ -75,8 +75,8 @@ int main() {
   for (int s = 0; s < 430; ++s) {
     world.step();
     again.step();
-    const std::vector<Vec3>& a = world.particles().position;
-    const std::vector<Vec3>& b = again.particles().position;
+    const auto& a = world.particles().position;
+    const auto& b = again.particles().position;
     same = same && std::memcmp(a.data(), b.data(), a.size() * sizeof(Vec3)) == 0;
   }
   std::printf("t = %.4f s: state saved; restored into a second world, it steps on %s\n", saveTime,
