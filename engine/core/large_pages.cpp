@@ -28,14 +28,14 @@ namespace volpar {
 namespace {
 
 constexpr std::size_t kAlign = 64;
-// blocks below this come from operator new: a vector of a few elements gains nothing from the pool
-constexpr std::size_t kSmallest = 16 * 1024;
 
 void* allocateSmall(std::size_t bytes) { return ::operator new(bytes, std::align_val_t{kAlign}); }
 void freeSmall(void* block) noexcept { ::operator delete(block, std::align_val_t{kAlign}); }
 
 #if VOLPAR_LARGE_PAGE_POOL
 
+// blocks below this come from operator new: a vector of a few elements gains nothing from the pool
+constexpr std::size_t kSmallest = 16 * 1024;
 constexpr std::size_t kLargePage = std::size_t{2} << 20;
 constexpr std::size_t kGranule = 256;                      // blocks are whole granules
 constexpr std::size_t kRegionBytes = std::size_t{64} << 20;  // address space reserved at a time
