@@ -47,15 +47,12 @@ class Pool {
   void* allocate(std::size_t bytes) {
     const std::size_t size = roundUp(bytes, kGranule);
     const std::lock_guard<std::mutex> lock(mutex_);
-    // first fit, lowest address first, so that the blocks in use stay packed at the front of the regions
-    for (auto it = free_.begin(); it != free_.end(); ++it) {
-      if (it->second < size) continue;
-      return take(it, size);
+    auto it = firstFit(size);
+    if (it == free_.end()) {
+      addRegion(size);  // (which adds a free block at least this large)
+      it = firstFit(size);
     }
-    addRegion(size);
-    for (auto it = free_.begin(); it != free_.end(); ++it)
-      if (it->second >= size) return take(it, size);
-    throw std::bad_alloc();  // (addRegion() adds a free block at least this large)
+    return take(it, size);
   }
 
   void free(void* block, std::size_t bytes) noexcept {
@@ -81,8 +78,7 @@ class Pool {
         free_.erase(before);
       }
     }
-    if (region->second.blocks == 0) {  // the whole region is free: back to the system
-      free_.erase(region->first);
+    if (region->second.blocks == 0) {  // the whole region is free (the merged block is all of it): back to the system
       munmap(reinterpret_cast<void*>(region->first), region->second.size);
       reserved_ -= region->second.size;
       regions_.erase(region);
@@ -102,7 +98,14 @@ class Pool {
     std::size_t blocks = 0;  // handed out and not given back
   };
 
-  void* take(std::map<std::uintptr_t, std::size_t>::iterator it, std::size_t size) {
+  using FreeBlock = std::map<std::uintptr_t, std::size_t>::iterator;
+
+  // first fit, lowest address first, so that the blocks in use stay packed at the front of the regions
+  FreeBlock firstFit(std::size_t size) {
+    return std::find_if(free_.begin(), free_.end(), [&](const auto& f) { return f.second >= size; });
+  }
+
+  void* take(FreeBlock it, std::size_t size) {
     const std::uintptr_t at = it->first;
     const std::size_t left = it->second - size;
     free_.erase(it);
