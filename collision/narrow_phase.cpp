@@ -4,6 +4,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <numeric>
 
@@ -200,7 +201,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   const std::size_t hi = ranks > 1 ? groupStart_[static_cast<std::size_t>(me) + 1] : groups;
   const bool shared = pool && pool->worthSharing(hi - lo, 128);
   const std::size_t workers = shared ? static_cast<std::size_t>(pool->workers()) : 1;
-  const std::size_t chunks = shared ? ThreadPool::kChunksPerWorker * workers : 1;
+  const std::size_t chunks = workers;
   if (workers_.size() < workers) workers_.resize(workers);
   for (std::size_t k = 0; k < workers; ++k) workers_[k].solver.setSettings(settings_);
   if (chunks_.size() < chunks) chunks_.resize(chunks);
@@ -211,12 +212,16 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
     o.stats = NarrowPhaseStats{};
     o.cache.clear();
   }
-  // the groups in chunks of contiguous ranges that the workers take as they go (a group whose patches
-  // are taken over costs a small part of one whose patches are computed); outputs merged in chunk order
+  // the groups in one contiguous range (a chunk) per worker, sized by the workers' paces in the last run
+  // (PacedSplit: a group whose patches are taken over costs a small part of one whose patches are
+  // computed, and those come in runs); outputs merged in chunk order
+  groupSplit_.prepare(static_cast<int>(chunks));
   const auto work = [&](int worker, std::size_t k) {
+    const auto started = std::chrono::steady_clock::now();
     Worker& w = workers_[static_cast<std::size_t>(worker)];
     w.o = &chunks_[k];
-    const std::size_t begin = lo + (hi - lo) * k / chunks, end = lo + (hi - lo) * (k + 1) / chunks;
+    const auto [first, last] = groupSplit_.range(hi - lo, static_cast<int>(chunks), static_cast<int>(k));
+    const std::size_t begin = lo + first, end = lo + last;
     CacheCursor cursor = cache_.groups.cbegin();
     for (std::size_t gi = begin; gi < end; ++gi) {
       const ContactGroup& g = contacts.groups[gi];
@@ -233,9 +238,17 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
       makePatches(in, contacts, g, w, out);
       if (cacheableGroup) remember(in, contacts, g, patchBegin, w);
     }
+    groupSplit_.record(static_cast<int>(k), secondsSinceStart(started));
   };
-  if (shared) pool->runItems(chunks, work);
-  else work(0, 0);
+  if (shared) {
+    // (worker w takes chunk w: run() hands each worker one of the `chunks` items)
+    pool->run(chunks, [&](int worker, std::size_t first, std::size_t last) {
+      for (std::size_t k = first; k < last; ++k) work(worker, k);
+    });
+    groupSplit_.adapt();
+  } else {
+    work(0, 0);
+  }
   // (with processes: every process's chunks, in process order, and the contacts' values its workers wrote)
   auto& list = ranks > 1 ? gathered_ : chunks_;
   const std::size_t listed = ranks > 1 ? gatherChunks(chunks) : chunks;

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "volpar/engine/core/large_pages.hpp"
+#include "volpar/engine/core/paced_split.hpp"
 #include "volpar/collision/contact_patch.hpp"
 #include "volpar/collision/normal_cache.hpp"
 #include "volpar/collision/particle_contacts.hpp"
@@ -146,6 +147,7 @@ class NarrowPhase {
   LargeVector<Worker> workers_;
   Cache cache_;                        // what the last run computed or reused, for the next
   LargeVector<Output> chunks_;
+  PacedSplit groupSplit_;  // the groups' ranges of the workers' chunks
   // with processes: this process's chunks as bytes, every process's, and every process's chunks again
   ProcessGroup* processes_ = nullptr;
   std::vector<std::byte> mine_, all_;

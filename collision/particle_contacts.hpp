@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "volpar/engine/core/large_pages.hpp"
+#include "volpar/engine/core/paced_split.hpp"
 #include "volpar/collision/aabb.hpp"
 #include "volpar/collision/broadphase.hpp"
 #include "volpar/engine/core/body_store.hpp"
@@ -217,6 +218,7 @@ class ContactFinder {
   bool reuse_ = true;
   PairCache cache_;              // candidate lists of the last find(), for the next
   LargeVector<Chunk> chunks_;
+  PacedSplit pairSplit_;  // the body pairs' ranges of the workers' chunks
   std::size_t reusedPairs_ = 0;
   LargeVector<BodyId> deformables_;
   LargeVector<std::uint32_t> adjacencyStart_;  // CSR over particles [P + 1]

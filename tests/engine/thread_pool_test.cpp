@@ -1,10 +1,14 @@
 // The thread pool hands out every item exactly once, splits ranges as documented, and keeps working
 // after its workers have gone to sleep.
 #include "volpar/engine/core/thread_pool.hpp"
+#include "volpar/engine/core/paced_split.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
+#include <limits>
 #include <chrono>
 #include <numeric>
 #include <thread>
@@ -126,6 +130,76 @@ TEST(SpinBarrier, NoThreadPassesBeforeAllArrive) {
   });
   for (const int s : seenAfter) EXPECT_EQ(s, 0);
   EXPECT_EQ(arrived.load(), 150);
+}
+
+// The ranges of a PacedSplit are contiguous, in worker order, and cover every item once, whatever the
+// number of items and wherever the boundaries have moved.
+TEST(PacedSplit, RangesCoverEveryItemOnceInWorkerOrder) {
+  for (const int workers : {1, 2, 3, 5}) {
+    PacedSplit split;
+    for (int call = 0; call < 6; ++call) {
+      for (const std::size_t n : {0u, 1u, 2u, 7u, 1000u}) {
+        std::size_t next = 0;
+        for (int w = 0; w < workers; ++w) {
+          const auto [begin, end] = split.range(n, workers, w);
+          ASSERT_EQ(begin, next) << "workers " << workers << ", n " << n << ", worker " << w;
+          ASSERT_LE(begin, end);
+          next = end;
+        }
+        ASSERT_EQ(next, n) << "workers " << workers << ", n " << n;
+      }
+      // uneven times move the boundaries for the next call
+      for (int w = 0; w < workers; ++w) split.record(w, 1e-3 * (1.0 + w * w + call));
+      split.adapt();
+    }
+  }
+}
+
+// Workers whose items cost unevenly: the boundaries move until every worker takes the same time.
+TEST(PacedSplit, BoundariesFollowThePacesUntilTheTimesAreEven) {
+  PacedSplit split;
+  const int workers = 3;
+  const double cost[3] = {3.0, 1.0, 2.0};  // seconds per item of each worker (e.g. its items' cost)
+  const std::size_t n = 6000;
+  double slowest = 0.0, fastest = 0.0;
+  for (int call = 0; call < 30; ++call) {
+    slowest = 0.0;
+    fastest = std::numeric_limits<double>::infinity();
+    for (int w = 0; w < workers; ++w) {
+      const auto [begin, end] = split.range(n, workers, w);
+      const double seconds = cost[w] * static_cast<double>(end - begin);
+      split.record(w, seconds);
+      slowest = std::max(slowest, seconds);
+      fastest = std::min(fastest, seconds);
+    }
+    if (call == 0) {
+      EXPECT_GT(slowest, 2.9 * fastest) << "equal counts at first";
+    }
+    split.adapt();
+  }
+  EXPECT_LT(slowest, 1.01 * fastest);
+  // the even division: shares in proportion to 1/3, 1, 1/2
+  const double total = 1.0 / 3.0 + 1.0 + 0.5;
+  EXPECT_NEAR(split.edges()[1], (1.0 / 3.0) / total, 1e-3);
+  EXPECT_NEAR(split.edges()[2], (1.0 / 3.0 + 1.0) / total, 1e-3);
+}
+
+// A call without usable times (a worker took no measurable time, or a time is not finite) keeps the
+// division as it was.
+TEST(PacedSplit, KeepsTheDivisionWithoutUsableTimes) {
+  PacedSplit split;
+  (void)split.range(100, 2, 0);
+  split.record(0, 2.0);
+  split.record(1, 1.0);
+  split.adapt();
+  const double moved = split.edges()[1];
+  EXPECT_LT(moved, 0.5);
+  for (const double bad : {0.0, -1.0, std::numeric_limits<double>::infinity(), std::nan("")}) {
+    split.record(0, 1.0);
+    split.record(1, bad);
+    split.adapt();
+    EXPECT_EQ(split.edges()[1], moved) << bad;
+  }
 }
 
 }  // namespace
