@@ -4,7 +4,6 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <numeric>
 
@@ -201,7 +200,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
   const std::size_t hi = ranks > 1 ? groupStart_[static_cast<std::size_t>(me) + 1] : groups;
   const bool shared = pool && pool->worthSharing(hi - lo, 128);
   const std::size_t workers = shared ? static_cast<std::size_t>(pool->workers()) : 1;
-  const std::size_t chunks = workers;
+  const std::size_t chunks = shared ? PacedSplit::pieces(static_cast<int>(workers)) : 1;
   if (workers_.size() < workers) workers_.resize(workers);
   for (std::size_t k = 0; k < workers; ++k) workers_[k].solver.setSettings(settings_);
   if (chunks_.size() < chunks) chunks_.resize(chunks);
@@ -212,18 +211,15 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
     o.stats = NarrowPhaseStats{};
     o.cache.clear();
   }
-  // the groups in one contiguous range (a chunk) per worker, sized by the workers' paces in the last run
-  // (PacedSplit: a group whose patches are taken over costs a small part of one whose patches are
-  // computed, and those come in runs); outputs merged in chunk order
-  groupSplit_.prepare(static_cast<int>(chunks));
-  const auto work = [&](int worker, std::size_t k) {
-    const auto started = std::chrono::steady_clock::now();
+  // the groups in one contiguous range per worker, sized by the ranges' costs in the last run and cut into
+  // pieces (chunks) that workers done with their own take over (PacedSplit: a group whose patches are
+  // taken over costs a small part of one whose patches are computed, and those come in runs); outputs
+  // merged in chunk order
+  const auto work = [&](int worker, std::size_t k, std::size_t begin, std::size_t end) {
     Worker& w = workers_[static_cast<std::size_t>(worker)];
     w.o = &chunks_[k];
-    const auto [first, last] = groupSplit_.range(hi - lo, static_cast<int>(chunks), static_cast<int>(k));
-    const std::size_t begin = lo + first, end = lo + last;
     CacheCursor cursor = cache_.groups.cbegin();
-    for (std::size_t gi = begin; gi < end; ++gi) {
+    for (std::size_t gi = lo + begin; gi < lo + end; ++gi) {
       const ContactGroup& g = contacts.groups[gi];
       const bool cacheableGroup = settings_.reuse && cacheable(in, g);
       // (with processes, found already: divideGroups())
@@ -238,17 +234,9 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
       makePatches(in, contacts, g, w, out);
       if (cacheableGroup) remember(in, contacts, g, patchBegin, w);
     }
-    groupSplit_.record(static_cast<int>(k), secondsSinceStart(started));
   };
-  if (shared) {
-    // (worker w takes chunk w: run() hands each worker one of the `chunks` items)
-    pool->run(chunks, [&](int worker, std::size_t first, std::size_t last) {
-      for (std::size_t k = first; k < last; ++k) work(worker, k);
-    });
-    groupSplit_.adapt();
-  } else {
-    work(0, 0);
-  }
+  if (shared) groupSplit_.run(*pool, static_cast<int>(workers), hi - lo, work);
+  else work(0, 0, 0, hi - lo);
   // (with processes: every process's chunks, in process order, and the contacts' values its workers wrote)
   auto& list = ranks > 1 ? gathered_ : chunks_;
   const std::size_t listed = ranks > 1 ? gatherChunks(chunks) : chunks;

@@ -147,7 +147,7 @@ class NarrowPhase {
   LargeVector<Worker> workers_;
   Cache cache_;                        // what the last run computed or reused, for the next
   LargeVector<Output> chunks_;
-  PacedSplit groupSplit_;  // the groups' ranges of the workers' chunks
+  PacedSplit groupSplit_;  // the groups' ranges of the workers, and their pieces (the chunks)
   // with processes: this process's chunks as bytes, every process's, and every process's chunks again
   ProcessGroup* processes_ = nullptr;
   std::vector<std::byte> mine_, all_;

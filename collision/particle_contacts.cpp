@@ -448,14 +448,15 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
                                                           std::span<const Aabb> boxes, ContactSet& out, ThreadPool* pool) {
   // (out keeps its size until the merge below resizes it: only entries beyond the last step's are
   // initialised before they are overwritten)
-  // body pairs, then bodies on planes, in one contiguous range (a chunk) per worker, the body pairs' ranges
-  // sized by the workers' paces in the last search (PacedSplit: each worker then reads one part of the
-  // particles, in its own cache, where many small chunks taken as they come made every worker read all of
-  // them); the chunks' outputs are merged in order, all body pairs' contacts first, then all planes'
+  // body pairs, then bodies on planes, in one contiguous range per worker, sized by the ranges' costs in
+  // the last search and cut into pieces (chunks) that workers done with their own take over (PacedSplit:
+  // each worker then reads one part of the particles, in its own cache, where many small chunks taken as
+  // they come made every worker read all of them); the chunks' outputs are merged in order, all body
+  // pairs' contacts first, then all planes'
   const bool shared = pool && pool->worthSharing(pairs.size(), 512);
-  const std::size_t chunks = shared ? static_cast<std::size_t>(pool->workers()) : 1;
+  const int workers = shared ? pool->workers() : 1;
+  const std::size_t chunks = shared ? PacedSplit::pieces(workers) : 1;
   if (chunks_.size() < chunks) chunks_.resize(chunks);
-  pairSplit_.prepare(static_cast<int>(chunks));
   for (std::size_t k = 0; k < chunks; ++k) {
     chunks_[k].out.clear();
     chunks_[k].planes.clear();
@@ -463,10 +464,8 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
     chunks_[k].reused = 0;
   }
   std::size_t onlyChunkBodyGroups = 0;
-  const auto work = [&](std::size_t k) {
-    const auto started = std::chrono::steady_clock::now();
+  const auto work = [&](std::size_t k, std::size_t begin, std::size_t end) {
     Chunk& w = chunks_[k];
-    const auto [begin, end] = pairSplit_.range(pairs.size(), static_cast<int>(chunks), static_cast<int>(k));
     // (whether this range's pairs come in key order, after the range before: the lists follow the pairs, so
     // they are in key order, which lookups need, where every range's pairs are)
     w.inOrder = std::is_sorted(pairs.begin() + static_cast<std::ptrdiff_t>(begin), pairs.begin() + static_cast<std::ptrdiff_t>(end)) &&
@@ -488,17 +487,9 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
     ContactSet& planesOut = chunks == 1 ? w.out : w.planes;
     for (std::size_t i = planePairs.size() * k / chunks; i < planePairs.size() * (k + 1) / chunks; ++i)
       planeContacts(particles, bodies, planePairs[i].body, planePairs[i].plane, planes[planePairs[i].plane.index()], planesOut);
-    pairSplit_.record(static_cast<int>(k), secondsSinceStart(started));
   };
-  if (shared) {
-    // (worker w takes chunk w: run() hands each worker one of the `chunks` items)
-    pool->run(chunks, [&](int, std::size_t first, std::size_t last) {
-      for (std::size_t k = first; k < last; ++k) work(k);
-    });
-    pairSplit_.adapt();
-  } else {
-    work(0);
-  }
+  if (shared) pairSplit_.run(*pool, workers, pairs.size(), [&](int, std::size_t k, std::size_t begin, std::size_t end) { work(k, begin, end); });
+  else work(0, 0, pairs.size());
   // lookups need the lists in key order (body pairs come sorted; if a caller's do not, nothing is reused,
   // which finds the same contacts)
   const auto checkOrder = [&] {

@@ -218,7 +218,7 @@ class ContactFinder {
   bool reuse_ = true;
   PairCache cache_;              // candidate lists of the last find(), for the next
   LargeVector<Chunk> chunks_;
-  PacedSplit pairSplit_;  // the body pairs' ranges of the workers' chunks
+  PacedSplit pairSplit_;  // the body pairs' ranges of the workers, and their pieces (the chunks)
   std::size_t reusedPairs_ = 0;
   LargeVector<BodyId> deformables_;
   LargeVector<std::uint32_t> adjacencyStart_;  // CSR over particles [P + 1]

@@ -132,73 +132,106 @@ TEST(SpinBarrier, NoThreadPassesBeforeAllArrive) {
   EXPECT_EQ(arrived.load(), 150);
 }
 
-// The ranges of a PacedSplit are contiguous, in worker order, and cover every item once, whatever the
-// number of items and wherever the boundaries have moved.
-TEST(PacedSplit, RangesCoverEveryItemOnceInWorkerOrder) {
+// The pieces of a PacedSplit are contiguous, in order, and cover every item once, whatever the number of
+// items and wherever the boundaries have moved.
+TEST(PacedSplit, PiecesCoverEveryItemOnceInOrder) {
   for (const int workers : {1, 2, 3, 5}) {
     PacedSplit split;
+    const std::size_t pieces = PacedSplit::pieces(workers);
     for (int call = 0; call < 6; ++call) {
       for (const std::size_t n : {0u, 1u, 2u, 7u, 1000u}) {
         std::size_t next = 0;
-        for (int w = 0; w < workers; ++w) {
-          const auto [begin, end] = split.range(n, workers, w);
-          ASSERT_EQ(begin, next) << "workers " << workers << ", n " << n << ", worker " << w;
+        for (std::size_t p = 0; p < pieces; ++p) {
+          const auto [begin, end] = split.piece(n, workers, p);
+          ASSERT_EQ(begin, next) << "workers " << workers << ", n " << n << ", piece " << p;
           ASSERT_LE(begin, end);
           next = end;
         }
         ASSERT_EQ(next, n) << "workers " << workers << ", n " << n;
       }
       // uneven times move the boundaries for the next call
-      for (int w = 0; w < workers; ++w) split.record(w, 1e-3 * (1.0 + w * w + call));
+      for (std::size_t p = 0; p < pieces; ++p) split.record(p, 1e-3 * (1.0 + static_cast<double>(p * p) + call));
       split.adapt();
     }
   }
 }
 
-// Workers whose items cost unevenly: the boundaries move until every worker takes the same time.
-TEST(PacedSplit, BoundariesFollowThePacesUntilTheTimesAreEven) {
+// Items whose cost varies along the range: the boundaries move until every worker's range costs the same.
+TEST(PacedSplit, BoundariesFollowTheCostUntilTheRangesAreEven) {
   PacedSplit split;
   const int workers = 3;
-  const double cost[3] = {3.0, 1.0, 2.0};  // seconds per item of each worker (e.g. its items' cost)
-  const std::size_t n = 6000;
-  double slowest = 0.0, fastest = 0.0;
-  for (int call = 0; call < 30; ++call) {
-    slowest = 0.0;
-    fastest = std::numeric_limits<double>::infinity();
-    for (int w = 0; w < workers; ++w) {
-      const auto [begin, end] = split.range(n, workers, w);
-      const double seconds = cost[w] * static_cast<double>(end - begin);
-      split.record(w, seconds);
-      slowest = std::max(slowest, seconds);
-      fastest = std::min(fastest, seconds);
+  const std::size_t n = 6000, pieces = PacedSplit::pieces(workers);
+  // seconds per item: 3 in the first third, 1 in the second, 2 in the last
+  const auto cost = [&](std::size_t i) { return i < n / 3 ? 3.0 : i < 2 * n / 3 ? 1.0 : 2.0; };
+  std::vector<double> ranges(workers);
+  for (int call = 0; call < 40; ++call) {
+    std::fill(ranges.begin(), ranges.end(), 0.0);
+    for (std::size_t p = 0; p < pieces; ++p) {
+      const auto [begin, end] = split.piece(n, workers, p);
+      double seconds = 0.0;
+      for (std::size_t i = begin; i < end; ++i) seconds += cost(i);
+      split.record(p, seconds);
+      ranges[p / PacedSplit::kPieces] += seconds;
     }
     if (call == 0) {
-      EXPECT_GT(slowest, 2.9 * fastest) << "equal counts at first";
+      EXPECT_GT(*std::max_element(ranges.begin(), ranges.end()), 1.4 * *std::min_element(ranges.begin(), ranges.end()))
+          << "equal counts at first";
     }
     split.adapt();
   }
-  EXPECT_LT(slowest, 1.01 * fastest);
-  // the even division: shares in proportion to 1/3, 1, 1/2
-  const double total = 1.0 / 3.0 + 1.0 + 0.5;
-  EXPECT_NEAR(split.edges()[1], (1.0 / 3.0) / total, 1e-3);
-  EXPECT_NEAR(split.edges()[2], (1.0 / 3.0 + 1.0) / total, 1e-3);
+  EXPECT_LT(*std::max_element(ranges.begin(), ranges.end()), 1.01 * *std::min_element(ranges.begin(), ranges.end()));
+  // each range costs a third of the 12000 s: the first ends at 4000 / 3 items, the second where the
+  // second third's items have added 4000 s more
+  EXPECT_NEAR(split.edges()[1] * n, 4000.0 / 3.0, 3.0);
+  EXPECT_NEAR(split.edges()[2] * n, 2000.0 + 2000.0, 3.0);
 }
 
-// A call without usable times (a worker took no measurable time, or a time is not finite) keeps the
+// A call without usable times (a range took no measurable time, or a time is not finite) keeps the
 // division as it was.
 TEST(PacedSplit, KeepsTheDivisionWithoutUsableTimes) {
   PacedSplit split;
-  (void)split.range(100, 2, 0);
-  split.record(0, 2.0);
-  split.record(1, 1.0);
+  (void)split.piece(100, 2, 0);
+  const std::size_t k = PacedSplit::kPieces;
+  for (std::size_t p = 0; p < k; ++p) {
+    split.record(p, 2.0);
+    split.record(k + p, 1.0);
+  }
   split.adapt();
   const double moved = split.edges()[1];
   EXPECT_LT(moved, 0.5);
   for (const double bad : {0.0, -1.0, std::numeric_limits<double>::infinity(), std::nan("")}) {
-    split.record(0, 1.0);
-    split.record(1, bad);
+    for (std::size_t p = 0; p < k; ++p) {
+      split.record(p, 1.0);
+      split.record(k + p, p == 0 ? bad : 0.0);
+    }
     split.adapt();
     EXPECT_EQ(split.edges()[1], moved) << bad;
+  }
+}
+
+// run() calls every piece exactly once, and a worker done with its own range takes over the pieces another
+// worker has not reached (here: while that worker is held up in its first piece).
+TEST(PacedSplit, RunCallsEveryPieceOnceAndHandsTheTailToAWorkerThatIsDone) {
+  for (const int workers : {1, 2, 3}) {
+    ThreadPool pool(workers);
+    PacedSplit split;
+    const std::size_t n = 1000, pieces = PacedSplit::pieces(workers);
+    std::vector<std::atomic<int>> hits(n);
+    std::vector<int> ranBy(pieces, -1);
+    split.run(pool, workers, n, [&](int worker, std::size_t p, std::size_t begin, std::size_t end) {
+      ranBy[p] = worker;
+      if (p == 0 && workers > 1) std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      for (std::size_t i = begin; i < end; ++i) hits[i].fetch_add(1);
+    });
+    for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(hits[i].load(), 1) << "workers " << workers << ", item " << i;
+    for (std::size_t p = 0; p < pieces; ++p) ASSERT_GE(ranBy[p], 0) << "piece " << p << " never ran";
+    if (workers > 1) {
+      EXPECT_EQ(ranBy[0], 0);
+      for (std::size_t p = 1; p < PacedSplit::kPieces; ++p)
+        EXPECT_NE(ranBy[p], 0) << "worker 0's piece " << p << " waited for worker 0";
+      // the held-up range took the time: the next call gives it fewer items
+      EXPECT_LT(split.edges()[1], 1.0 / workers);
+    }
   }
 }
 
