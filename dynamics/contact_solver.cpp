@@ -938,8 +938,15 @@ void ContactSolver::solve(std::span<SolverBody> bodies, std::span<const ContactP
       const bool last = it + 1 == settings_.iterations;
       for (int l = depth_; l >= 0; --l) {
         forOwnClaimed(l, [&](std::size_t part) {
-          if (last) velocityPart(part, [&](std::size_t j) { normalSum_[part] += finish(part, j); });
-          else velocityPart(part, none);
+          if (last) {
+            // (summed on this thread's stack and stored once: the parts' sums share cache lines, which two
+            // threads writing them batch by batch would pass back and forth)
+            double sum = normalSum_[part];
+            velocityPart(part, [&](std::size_t j) { sum += finish(part, j); });
+            normalSum_[part] = sum;
+          } else {
+            velocityPart(part, none);
+          }
         });
         barrier_.wait();
         if (handsOver(l)) {
