@@ -408,6 +408,14 @@ int runAndSignal(const std::string& scene, const std::string& out, const std::ve
     _exit(127);
   }
   if (waitMs > 0) {
+    // the wait counts from when the run has begun writing (its partial file is there), not from the fork: a busy
+    // machine can take longer than the wait itself to start the process
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (!std::filesystem::exists(partialPath(out)) && std::chrono::steady_clock::now() < deadline) {
+      int early = 0;
+      if (waitpid(pid, &early, WNOHANG) == pid) return early;  // ended before it wrote anything
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(waitMs));
     kill(pid, signal);
   }

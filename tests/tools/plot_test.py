@@ -223,9 +223,16 @@ check(r.returncode == 1 and "is the trajectory being plotted" in r.stderr and di
           r.stderr.strip()))
 
 # ---- Ctrl-C: status 130, no half-written file
-p = subprocess.Popen([script, fracture, "-o", os.path.join(work, "interrupted"), "--dpi", "600"], cwd=work,
+# The interrupt is sent once a plot is being written (its .partial file is there): an earlier one could land
+# while Python itself starts, before the script runs, where no script can answer it.
+interrupted_dir = os.path.join(work, "interrupted")
+p = subprocess.Popen([script, fracture, "-o", interrupted_dir, "--dpi", "600"], cwd=work,
                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-time.sleep(0.5)
+deadline = time.monotonic() + 100
+while p.poll() is None and time.monotonic() < deadline and not glob.glob(os.path.join(interrupted_dir,
+                                                                                       "*.partial")):
+    time.sleep(0.002)
+check(p.poll() is None, "Ctrl-C: a plot was being written when the interrupt was sent")
 p.send_signal(signal.SIGINT)
 out, err = p.communicate(timeout=120)
 check(p.returncode == 130 and "Traceback" not in err, "Ctrl-C: status %d, %r" % (p.returncode, err.strip()[-300:]))
