@@ -217,18 +217,28 @@ TEST(PacedSplit, RunCallsEveryPieceOnceAndHandsTheTailToAWorkerThatIsDone) {
     PacedSplit split;
     const std::size_t n = 1000, pieces = PacedSplit::pieces(workers);
     std::vector<std::atomic<int>> hits(n);
-    std::vector<int> ranBy(pieces, -1);
+    std::vector<std::atomic<int>> ranBy(pieces);
+    for (auto& r : ranBy) r.store(-1);
+    // worker 0 is held up in its first piece until its other pieces have run (at most a minute: a split
+    // that never hands them over fails below, after the wait, however busy the machine)
+    std::atomic<std::size_t> restOfFirstRange{0};
     split.run(pool, workers, n, [&](int worker, std::size_t p, std::size_t begin, std::size_t end) {
-      ranBy[p] = worker;
-      if (p == 0 && workers > 1) std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      ranBy[p].store(worker);
+      if (p == 0 && workers > 1) {
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+        while (restOfFirstRange.load() < PacedSplit::kPieces - 1 && std::chrono::steady_clock::now() < deadline)
+          std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));  // (and takes longer than any other range)
+      }
       for (std::size_t i = begin; i < end; ++i) hits[i].fetch_add(1);
+      if (p > 0 && p < PacedSplit::kPieces) restOfFirstRange.fetch_add(1);
     });
     for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(hits[i].load(), 1) << "workers " << workers << ", item " << i;
-    for (std::size_t p = 0; p < pieces; ++p) ASSERT_GE(ranBy[p], 0) << "piece " << p << " never ran";
+    for (std::size_t p = 0; p < pieces; ++p) ASSERT_GE(ranBy[p].load(), 0) << "piece " << p << " never ran";
     if (workers > 1) {
-      EXPECT_EQ(ranBy[0], 0);
+      EXPECT_EQ(ranBy[0].load(), 0);
       for (std::size_t p = 1; p < PacedSplit::kPieces; ++p)
-        EXPECT_NE(ranBy[p], 0) << "worker 0's piece " << p << " waited for worker 0";
+        EXPECT_NE(ranBy[p].load(), 0) << "worker 0's piece " << p << " waited for worker 0";
       // the held-up range took the time: the next call gives it fewer items
       EXPECT_LT(split.edges()[1], 1.0 / workers);
     }
