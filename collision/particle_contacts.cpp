@@ -464,7 +464,7 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
     chunks_[k].reused = 0;
   }
   std::size_t onlyChunkBodyGroups = 0;
-  const auto work = [&](std::size_t k, std::size_t begin, std::size_t end) {
+  const auto work = [&](int, std::size_t k, std::size_t begin, std::size_t end) {
     Chunk& w = chunks_[k];
     // (whether this range's pairs come in key order, after the range before: the lists follow the pairs, so
     // they are in key order, which lookups need, where every range's pairs are)
@@ -488,8 +488,8 @@ std::pair<std::size_t, std::size_t> ContactFinder::search(const ParticleStore& p
     for (std::size_t i = planePairs.size() * k / chunks; i < planePairs.size() * (k + 1) / chunks; ++i)
       planeContacts(particles, bodies, planePairs[i].body, planePairs[i].plane, planes[planePairs[i].plane.index()], planesOut);
   };
-  if (shared) pairSplit_.run(*pool, workers, pairs.size(), [&](int, std::size_t k, std::size_t begin, std::size_t end) { work(k, begin, end); });
-  else work(0, 0, pairs.size());
+  if (shared) pairSplit_.run(*pool, workers, pairs.size(), work);
+  else work(0, 0, 0, pairs.size());
   // lookups need the lists in key order (body pairs come sorted; if a caller's do not, nothing is reused,
   // which finds the same contacts)
   const auto checkOrder = [&] {

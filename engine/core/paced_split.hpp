@@ -46,7 +46,7 @@ class PacedSplit {
   /// [begin, end) of piece `piece` of n items among `workers` (the first call: equal counts per worker).
   [[nodiscard]] std::pair<std::size_t, std::size_t> piece(std::size_t n, int workers, std::size_t piece) {
     prepare(workers);
-    return {at(n, piece), std::max(at(n, piece), at(n, piece + 1))};
+    return range(n, piece);
   }
 
   /// Calls f(worker, piece, begin, end) once for every piece of n items, on `workers` workers of `pool`
@@ -58,7 +58,8 @@ class PacedSplit {
     const std::size_t count = edges_.size();
     const auto timed = [&](int worker, std::size_t p) {
       const auto started = std::chrono::steady_clock::now();
-      f(worker, p, at(n, p), std::max(at(n, p), at(n, p + 1)));
+      const auto [begin, end] = range(n, p);
+      f(worker, p, begin, end);
       seconds_[p] = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     };
     if (count == 1) {
@@ -148,6 +149,10 @@ class PacedSplit {
                                        std::memory_order_acquire))
         return front ? f : b - 1;
     }
+  }
+  /// [begin, end) of piece p of n items.
+  [[nodiscard]] std::pair<std::size_t, std::size_t> range(std::size_t n, std::size_t p) const {
+    return {at(n, p), std::max(at(n, p), at(n, p + 1))};
   }
   /// Start of piece p of n items (p = pieces(): n).
   [[nodiscard]] std::size_t at(std::size_t n, std::size_t p) const {
