@@ -136,6 +136,9 @@ class ContactSolver {
   /// Sum of the normal impulses applied in the last solve [N s].
   [[nodiscard]] double totalNormalImpulse() const { return totalNormalImpulse_; }
   [[nodiscard]] std::size_t warmStarted() const { return warmStarted_; }
+  /// Whether the next solve() warm starts a point of this key: the last solve (or the checkpoint it was
+  /// restored from) had one.
+  [[nodiscard]] bool warmStarts(std::uint64_t key) const { return cached(key) != nullptr; }
   /// Puts the impulses the next solve warm-starts from under "solver/..." (a checkpoint).
   void saveWarmStart(StateArchive& archive) const;
   /// Takes them back; false (with the reason in `reader`) where they do not fit together.

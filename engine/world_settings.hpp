@@ -36,6 +36,15 @@ struct WorldSettings {
   /// one the pair's approach speed closes within the step. A farther gap could only close if the solver
   /// itself drove the pair together faster than this distance per step, and its point is left out.
   double speculativeDistance = 0.0;
+  /// A rigid patch of more than four contacts goes to the solver as a manifold of four points (the deepest,
+  /// the farthest from it, ...: docs/architecture.md). Where a choice's best contact was not a point in the
+  /// last step, the best one that was is taken instead if its depth is within manifoldDepthTies x (r_a +
+  /// r_b) of the deepest's (the first choice; against a plane, x r_a), or its score within the fraction
+  /// manifoldScoreTies of the best (the others). A resting face's contacts are all about as deep: without
+  /// this its points change from step to step, their warm start is lost, and the load they carried is
+  /// rebuilt from nothing by the iterations, so that a deep pile creeps and never comes to rest.
+  double manifoldDepthTies = 5e-4;
+  double manifoldScoreTies = 0.05;
   /// A deformable body's normals follow its shape: around a connector that has stretched by this strain [-]
   /// or turned (relative to the body's best-fit rotation) by more than normalTurnThreshold [rad] since its
   /// particles' normals were last estimated, they are estimated again.
