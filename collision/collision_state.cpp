@@ -257,6 +257,9 @@ void NarrowPhase::saveCache(StateArchive& archive) const {
   archive.put("narrow_phase/patch_margin", std::span<const double>(margin));
   archive.put("narrow_phase/patch_count", std::span<const std::uint32_t>(count));
   archive.put("narrow_phase/patch_flags", std::span<const std::uint8_t>(flags), 6);
+  std::vector<std::uint8_t> normalSide;
+  for (const CachedPatch& p : cache.patches) normalSide.push_back(static_cast<std::uint8_t>(p.normalSide));
+  archive.put("narrow_phase/patch_normal_side", std::span<const std::uint8_t>(normalSide));
 }
 
 bool NarrowPhase::restoreCache(StateReader& r) {
@@ -272,6 +275,10 @@ bool NarrowPhase::restoreCache(StateReader& r) {
   const std::vector<double> margin = r.get<double>("narrow_phase/patch_margin", 1, nq);
   const std::vector<std::uint32_t> count = r.get<std::uint32_t>("narrow_phase/patch_count", 1, nq);
   const std::vector<std::uint8_t> flags = r.get<std::uint8_t>("narrow_phase/patch_flags", 6, nq);
+  // (a checkpoint written before normals were carried in B's frame has none: every normal is in A's)
+  const std::vector<std::uint8_t> normalSide = r.has("narrow_phase/patch_normal_side")
+                                                   ? r.get<std::uint8_t>("narrow_phase/patch_normal_side", 1, nq)
+                                                   : std::vector<std::uint8_t>(nq, 0);
   if (!r.ok()) return false;
   Cache c;
   c.groups.resize(ng);
@@ -313,6 +320,11 @@ bool NarrowPhase::restoreCache(StateReader& r) {
     p.core[1] = Vec3(v[6], v[7], v[8]);
     p.margin = margin[i];
     p.count = count[i];
+    if (normalSide[i] > 1) {
+      r.fail("checkpoint narrow-phase patch " + std::to_string(i) + " has a normal side out of range");
+      return false;
+    }
+    p.normalSide = static_cast<std::int8_t>(normalSide[i]);
   }
   cache_ = std::move(c);
   return true;

@@ -38,6 +38,10 @@ struct ContactPatch {
   /// axis: the segment core[0]..core[1], world) against a deformable sheet or chain (which has no core): that
   /// side, 0 (A) or 1 (B); each contact then has the core's tangent plane at it (contactNormal). -1 elsewhere.
   std::int8_t curvedSide = -1;
+  /// The side whose face the normal is, 0 (A) or 1 (B): where the patch is taken over in a later step
+  /// (NarrowPhase), the normal turns with that side's body. 0 where the normal is A's face or both sides' (an
+  /// edge crossing an edge, a corner near an edge).
+  std::int8_t normalSide = 0;
   std::array<Vec3, 2> core{Vec3::Zero(), Vec3::Zero()};
   std::uint32_t first = 0;        ///< range in PatchSet::contacts
   std::uint32_t count = 0;

@@ -113,7 +113,8 @@ void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const
     patch.a = g.a;
     patch.b = g.b;
     patch.plane = g.plane;
-    patch.normal = plane ? cp.normal : Vec3(qa * cp.normal);
+    patch.normal = plane ? cp.normal : cp.normalSide == 1 ? Vec3(in.bodies->state[g.b.index()].orientation * cp.normal) : Vec3(qa * cp.normal);
+    patch.normalSide = cp.normalSide;
     patch.margin = cp.margin;
     patch.planeCase = cp.planeCase;
     patch.source = cp.source;
@@ -148,7 +149,7 @@ void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const
     w.o->patches.push_back(patch);
   }
   // the entry goes on as it is: the pose of the computation, not this step's (the tolerance bounds the total
-  // drift), and the normals in A's frame as computed
+  // drift), and the normals in their bodies' frames as computed
   copyEntry(cache_, entry, w.o->cache);
 }
 
@@ -169,7 +170,11 @@ void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, co
   for (std::size_t j = patchBegin; j < w.o->patches.size(); ++j) {
     const ContactPatch& patch = w.o->patches[j];
     CachedPatch cp;
-    cp.normal = g.plane.valid() ? patch.normal : Vec3(toA * patch.normal);
+    const bool onB = !g.plane.valid() && patch.normalSide == 1;
+    cp.normal = g.plane.valid() ? patch.normal
+                : onB         ? Vec3(in.bodies->state[g.b.index()].orientation.conjugate() * patch.normal)
+                              : Vec3(toA * patch.normal);
+    cp.normalSide = onB ? 1 : 0;
     cp.margin = patch.margin;
     cp.count = patch.count;
     cp.planeCase = patch.planeCase;

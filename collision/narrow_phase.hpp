@@ -34,9 +34,10 @@ namespace volpar {
 /// Temporal coherence: the patches of a group between two rigid or static bodies (or a rigid body and a
 /// plane) depend only on the group's contact pairs and the bodies' relative pose. When a group has exactly
 /// the contact pairs it had when its patches were last computed and (for body pairs) the relative pose has
-/// not moved since by more than PlaneSettings::reuseAngle and reuseShift, the patches are taken over: the
-/// normals are carried along in body A's frame, and every contact's depth along its patch normal and each
-/// patch's deepest point are computed afresh. A settled stack or pile then costs almost nothing here.
+/// not moved since by more than PlaneSettings::reuseAngle and reuseShift, the patches are taken over: each
+/// normal is carried along in the frame of the body whose face it is (B's where it is B's face, else A's:
+/// ContactPatch::normalSide), and every contact's depth along its patch normal and each patch's deepest
+/// point are computed afresh. A settled stack or pile then costs almost nothing here.
 ///
 /// Groups are independent: with a ThreadPool they are shared among its workers in contiguous ranges and
 /// the results merged in group order, so the output does not depend on the number of threads.
@@ -73,7 +74,7 @@ class NarrowPhase {
   };
   /// A group's patches as last computed: normals in A's frame (planes: the world frame).
   struct CachedPatch {
-    Vec3 normal = Vec3::UnitZ();
+    Vec3 normal = Vec3::UnitZ();  // world for a plane's group; else in the frame of normalSide's body
     double margin = 0.0;
     std::uint32_t count = 0;
     PlaneCase planeCase = PlaneCase::VertexFace11;
@@ -82,6 +83,7 @@ class NarrowPhase {
     bool lookAhead = false;
     PlaneCase lookAheadCase = PlaneCase::VertexFace11;
     std::int8_t curvedSide = -1;
+    std::int8_t normalSide = 0;  // the body whose frame `normal` is in: 0 A, 1 B (ContactPatch::normalSide)
     std::array<Vec3, 2> core{Vec3::Zero(), Vec3::Zero()};  // in A's frame, about A's position
   };
   struct CachedGroup {

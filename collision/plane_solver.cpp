@@ -1393,6 +1393,7 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
   }
   patch.normal = best;
   patch.source = bestSource;
+  patch.normalSide = !patch.lookAhead && (bestSource == NormalSource::FaceB || bestSource == NormalSource::CachedB) ? 1 : 0;
   patch.margin = bestEval.margin;
   patch.validated = valid;
   if (!valid) ++stats.unvalidated;
@@ -1437,7 +1438,8 @@ bool PlaneSolver::solveCores(const NarrowPhaseInput& in, const ContactSet& set, 
     }
     return n;
   };
-  if (features(h.indexA) <= 1 && features(h.indexB) <= 1) return false;
+  const int featuresA = features(h.indexA), featuresB = features(h.indexB);
+  if (featuresA <= 1 && featuresB <= 1) return false;
 
   // the paper's case, from the sides' own particles (parallel edges are left to solve(), which looks ahead)
   std::uint32_t deepest = idx[0];
@@ -1470,6 +1472,8 @@ bool PlaneSolver::solveCores(const NarrowPhaseInput& in, const ContactSet& set, 
   patch.planeCase = c;
   patch.normal = h.direction;
   patch.source = NormalSource::Cores;
+  // (a corner or an edge of A's core against a face of B's: the normal is that face's)
+  patch.normalSide = featuresB >= 3 && featuresA <= 2 ? 1 : 0;
   patch.validated = true;
   patch.lookAhead = false;
   patch.curvedSide = -1;

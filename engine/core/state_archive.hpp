@@ -71,6 +71,8 @@ class StateReader {
   std::vector<Mat3> mat3(std::string_view name, std::optional<std::size_t> rows = std::nullopt);
   double f64(std::string_view name);
   std::int64_t i64(std::string_view name);
+  /// Whether the checkpoint has an array of this name (for arrays that older checkpoints lack).
+  [[nodiscard]] bool has(std::string_view name) const { return archive_.find(name) != nullptr; }
 
   /// Records a failure of the caller's own (the first one counts).
   void fail(std::string message) {
