@@ -113,7 +113,9 @@ void NarrowPhase::reuse(const NarrowPhaseInput& in, const ContactSet& set, const
     patch.a = g.a;
     patch.b = g.b;
     patch.plane = g.plane;
-    patch.normal = plane ? cp.normal : cp.normalSide == 1 ? Vec3(in.bodies->state[g.b.index()].orientation * cp.normal) : Vec3(qa * cp.normal);
+    // (the normal turns with the body whose face it is: ContactPatch::normalSide)
+    const Quat& frame = cp.normalSide == 1 ? in.bodies->state[g.b.index()].orientation : qa;
+    patch.normal = plane ? cp.normal : Vec3(frame * cp.normal);
     patch.normalSide = cp.normalSide;
     patch.margin = cp.margin;
     patch.planeCase = cp.planeCase;
@@ -170,11 +172,9 @@ void NarrowPhase::remember(const NarrowPhaseInput& in, const ContactSet& set, co
   for (std::size_t j = patchBegin; j < w.o->patches.size(); ++j) {
     const ContactPatch& patch = w.o->patches[j];
     CachedPatch cp;
-    const bool onB = !g.plane.valid() && patch.normalSide == 1;
-    cp.normal = g.plane.valid() ? patch.normal
-                : onB         ? Vec3(in.bodies->state[g.b.index()].orientation.conjugate() * patch.normal)
-                              : Vec3(toA * patch.normal);
-    cp.normalSide = onB ? 1 : 0;
+    cp.normalSide = !g.plane.valid() && patch.normalSide == 1 ? 1 : 0;
+    const Quat toFrame = cp.normalSide == 1 ? Quat(in.bodies->state[g.b.index()].orientation.conjugate()) : toA;
+    cp.normal = g.plane.valid() ? patch.normal : Vec3(toFrame * patch.normal);
     cp.margin = patch.margin;
     cp.count = patch.count;
     cp.planeCase = patch.planeCase;
