@@ -179,6 +179,21 @@ damaged("a connector neither broken nor whole", set_value("connectors/broken", 2
 damaged("a compressed array", lambda g: (g.__delitem__("particles/radius"),
                                          g.create_dataset("particles/radius", data=np.zeros(10 ** 6), compression="gzip")),
         "not stored whole")
+damaged("a normal of neither side", set_value("narrow_phase/patch_normal_side", 0, 2), "normal side out of range")
+
+# a checkpoint written before the narrow phase kept the side whose face a normal is resumes, with every normal
+# taken over turning with body A as it did then
+older = os.path.join(work, "older-checkpoint.h5")
+shutil.copy(os.path.join(work, pile), older)
+with h5py.File(older, "r+") as f:
+    slot = f["checkpoint/slot_%d" % f["checkpoint"].attrs["slot"]]
+    has_side = "narrow_phase/patch_normal_side" in slot
+    if has_side:
+        del slot["narrow_phase/patch_normal_side"]
+check(has_side, "a checkpoint keeps the side whose face each normal taken over is")
+p = run("--resume", older, "-o", "from-older.h5")
+check(p.returncode == 0 and os.path.exists(os.path.join(work, "from-older.h5")),
+      f"a checkpoint without the normals' sides resumes: {p.stderr.strip()[:160]}")
 
 if failures:
     print(f"{len(failures)} failed")
