@@ -224,6 +224,8 @@ bool NormalCache::restore(StateReader& r) {
       faces_[i].normal[k] = Vec3(faces[9 * i + 3 * k], faces[9 * i + 3 * k + 1], faces[9 * i + 3 * k + 2]);
   }
   free_.assign(free.begin(), free.end());
+  users_.assign(n, 0);  // (counted by countUsers())
+  shared_.clear();
   return true;
 }
 

@@ -1,5 +1,7 @@
 #include "volpar/collision/normal_cache.hpp"
 
+#include <cstring>
+
 #include "volpar/collision/particle_contacts.hpp"
 
 namespace volpar {
@@ -20,10 +22,78 @@ void store(ParticleStore& p, std::size_t i, const SurfaceEstimate& e, const Quat
   const Vec3 normal = toCache * e.normal;
   const std::span<const Vec3> f(faces.data(), e.faceCount);
   if (p.normalIndex[i] < 0) p.normalIndex[i] = cache.add(normal, f);
-  else cache.set(p.normalIndex[i], normal, f);
+  else p.normalIndex[i] = cache.rewrite(p.normalIndex[i], normal, f);
 }
 
+/// A hash of a normal and its faces, bit for bit.
+std::uint64_t contentHash(const Vec3& normal, std::span<const Vec3> faces) {
+  std::uint64_t h = 0xcbf29ce484222325ull ^ faces.size();
+  const auto mix = [&](double x) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &x, sizeof bits);
+    h = (h ^ bits) * 0x100000001b3ull;
+    h ^= h >> 29;
+  };
+  for (std::size_t c = 0; c < 3; ++c) mix(normal[static_cast<Eigen::Index>(c)]);
+  for (const Vec3& f : faces)
+    for (std::size_t c = 0; c < 3; ++c) mix(f[static_cast<Eigen::Index>(c)]);
+  return h;
+}
+
+bool sameBits(const Vec3& x, const Vec3& y) { return std::memcmp(x.data(), y.data(), 3 * sizeof(double)) == 0; }
+
 }  // namespace
+
+bool NormalCache::holds(std::int32_t index, const Vec3& normal, std::span<const Vec3> faces) const {
+  const auto i = static_cast<std::size_t>(index);
+  if (index < 0 || i >= normals_.size() || users_[i] == 0) return false;
+  const Faces& f = faces_[i];
+  if (f.count != std::min<std::size_t>(faces.size(), 3) || !sameBits(normals_[i], normal)) return false;
+  for (std::size_t k = 0; k < f.count; ++k)
+    if (!sameBits(f.normal[k], faces[k])) return false;
+  return true;
+}
+
+std::int32_t NormalCache::addShared(const Vec3& normal, std::span<const Vec3> faces) {
+  faces = faces.first(std::min<std::size_t>(faces.size(), 3));
+  const std::uint64_t h = contentHash(normal, faces);
+  if (const auto it = shared_.find(h); it != shared_.end() && holds(it->second, normal, faces)) {
+    ++users_[static_cast<std::size_t>(it->second)];
+    return it->second;
+  }
+  const std::int32_t index = add(normal, faces);
+  shared_[h] = index;
+  return index;
+}
+
+std::int32_t NormalCache::rewrite(std::int32_t index, const Vec3& normal, std::span<const Vec3> faces) {
+  if (holds(index, normal, faces)) return index;
+  if (users_[static_cast<std::size_t>(index)] == 1) {
+    write(index, normal, faces);
+    return index;
+  }
+  release(index);
+  return addShared(normal, faces);
+}
+
+bool NormalCache::countUsers(std::span<const std::int32_t> normalIndex) {
+  users_.assign(normals_.size(), 0);
+  for (const std::int32_t k : normalIndex) {
+    if (k < 0) continue;
+    if (static_cast<std::size_t>(k) >= users_.size()) return false;
+    ++users_[static_cast<std::size_t>(k)];
+  }
+  for (const std::int32_t k : free_)
+    if (users_[static_cast<std::size_t>(k)] != 0) return false;
+  // (the entries in use are shared again by content, each hash taking its first entry)
+  shared_.clear();
+  for (std::size_t i = 0; i < normals_.size(); ++i) {
+    if (users_[i] == 0) continue;
+    const Faces& f = faces_[i];
+    shared_.try_emplace(contentHash(normals_[i], std::span<const Vec3>(f.normal.data(), f.count)), static_cast<std::int32_t>(i));
+  }
+  return true;
+}
 
 std::size_t NormalUpdater::recompute(std::span<const ParticleId> ids, ParticleStore& p, const BodyStore& bodies,
                                      const ContactFinder& adjacency, std::span<const std::uint8_t> opened,

@@ -8,14 +8,22 @@
 // face normals, or estimated ones (normal_estimation.hpp). How to read an entry depends on the particle's
 // flags (ParticleFlag): see facingNormal().
 //
-// Entries are recycled: a particle keeps its entry while it is on the surface, rewritten in place when its
-// normal is recomputed or its body splits, and gives it back when it becomes interior. The list never holds
-// more entries than the most surface particles there have been at once.
+// Entries are recycled: a particle keeps its entry while it is on the surface, rewritten when its normal is
+// recomputed or its body splits, and gives it back when it becomes interior. The list never holds more
+// entries than the most surface particles there have been at once.
+//
+// Entries are shared. The particles of rigid and static bodies take an entry equal to theirs where one is in
+// use (the particles of one face of a box; every crate of a pile built from one shape), so the cache holds a
+// shape's normals once however many bodies have it, and the narrow phase reads them from the cache instead
+// of from memory. An entry counts its particles: rewriting a shared entry gives the particle an entry of its
+// own (or another equal one), and the entry is free once no particle holds it. Sharing changes which entry a
+// particle reads, never what it reads.
 
 #include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
+#include <unordered_map>
 #include <vector>
 
 #include "volpar/collision/normal_estimation.hpp"
@@ -40,19 +48,26 @@ class NormalCache {
       index = static_cast<std::int32_t>(normals_.size());
       normals_.emplace_back();
       faces_.emplace_back();
+      users_.push_back(0);
     }
-    set(index, normal, faces);
+    write(index, normal, faces);
+    users_[static_cast<std::size_t>(index)] = 1;
     return index;
   }
-  /// Rewrites entry `index`.
-  void set(std::int32_t index, const Vec3& normal, std::span<const Vec3> faces = {}) {
-    normals_[static_cast<std::size_t>(index)] = normal;
-    Faces& f = faces_[static_cast<std::size_t>(index)];
-    f.count = static_cast<std::uint8_t>(std::min<std::size_t>(faces.size(), 3));
-    for (std::size_t k = 0; k < f.count; ++k) f.normal[k] = faces[k];
+  /// As add(), but returns an entry in use that holds exactly this normal and these faces where there is one
+  /// (the entry then has one more particle).
+  std::int32_t addShared(const Vec3& normal, std::span<const Vec3> faces = {});
+  /// The entry particle's entry `index` becomes when its normal and faces are rewritten: `index` itself,
+  /// rewritten in place, where the particle alone holds it; otherwise an equal entry in use or a new one.
+  [[nodiscard]] std::int32_t rewrite(std::int32_t index, const Vec3& normal, std::span<const Vec3> faces = {});
+  /// Gives a particle's hold on entry `index` back (its particle became interior); the entry is free once no
+  /// particle holds it.
+  void release(std::int32_t index) {
+    if (--users_[static_cast<std::size_t>(index)] == 0) free_.push_back(index);
   }
-  /// Gives entry `index` back (its particle became interior).
-  void release(std::int32_t index) { free_.push_back(index); }
+  /// Counts each entry's particles anew from their indices (after restore()); false where a particle points
+  /// past the list or to a free entry.
+  bool countUsers(std::span<const std::int32_t> normalIndex);
 
   [[nodiscard]] const Vec3& operator[](std::int32_t index) const { return normals_[static_cast<std::size_t>(index)]; }
   /// The face normals behind entry `index` (possibly none).
@@ -64,6 +79,8 @@ class NormalCache {
   [[nodiscard]] std::size_t size() const { return normals_.size(); }
   /// Entries in use.
   [[nodiscard]] std::size_t used() const { return normals_.size() - free_.size(); }
+  /// The particles that hold entry `index`.
+  [[nodiscard]] std::uint32_t users(std::int32_t index) const { return users_[static_cast<std::size_t>(index)]; }
 
   /// Puts the entries (in use and free) under "normals/..." (collision_state.cpp).
   void save(StateArchive& archive) const;
@@ -75,9 +92,21 @@ class NormalCache {
     std::array<Vec3, 3> normal;
     std::uint8_t count = 0;
   };
+  void write(std::int32_t index, const Vec3& normal, std::span<const Vec3> faces) {
+    normals_[static_cast<std::size_t>(index)] = normal;
+    Faces& f = faces_[static_cast<std::size_t>(index)];
+    f.count = static_cast<std::uint8_t>(std::min<std::size_t>(faces.size(), 3));
+    for (std::size_t k = 0; k < f.count; ++k) f.normal[k] = faces[k];
+  }
+  /// Whether entry `index` is in use and holds exactly this normal and these faces (bit for bit).
+  [[nodiscard]] bool holds(std::int32_t index, const Vec3& normal, std::span<const Vec3> faces) const;
   std::vector<Vec3> normals_;
   std::vector<Faces> faces_;
+  std::vector<std::uint32_t> users_;  // by entry: the particles that hold it (0: free)
   std::vector<std::int32_t> free_;
+  // (entries to share: by a hash of their contents, an entry that held them when it was made; checked
+  // with holds() before it is shared)
+  std::unordered_map<std::uint64_t, std::int32_t> shared_;
 };
 
 /// World-frame outward normal of a surface particle from the cache (zero for interior particles).

@@ -166,7 +166,11 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
       std::size_t nf = 0;
       if (i < cloud.featureNormals.size())
         for (; nf < std::min<std::size_t>(features, 3); ++nf) faces[nf] = toCache * cloud.featureNormals[i][nf];
-      particles_.normalIndex[p] = normals_.add(toCache * cloud.normals[i], std::span<const Vec3>(faces.data(), nf));
+      // (a rigid or static body's entries are shared with equal ones; a deformable body's are its own, since
+      // they are rewritten as it bends)
+      const Vec3 normal = toCache * cloud.normals[i];
+      const std::span<const Vec3> f(faces.data(), nf);
+      particles_.normalIndex[p] = def.kind == BodyKind::Deformable ? normals_.add(normal, f) : normals_.addShared(normal, f);
     }
   }
   bodyConnectors_.emplace_back();

@@ -299,11 +299,11 @@ void World::moveParticles(std::span<const ParticleId> ids, BodyId id, const Vec3
     particles_.local[i] = toLocal * (particles_.position[i] - centre);
     const std::int32_t k = particles_.normalIndex[i];
     if (k >= 0) {
-      // the cached normal (and its faces) from the old body's frame to the new one's, in place
+      // the cached normal (and its faces) from the old body's frame to the new one's
       std::array<Vec3, 3> faces{};
       const std::span<const Vec3> old = normals_.faces(k);
       for (std::size_t f = 0; f < old.size(); ++f) faces[f] = toLocal * (from * old[f]);
-      normals_.set(k, toLocal * (from * normals_[k]), std::span<const Vec3>(faces.data(), old.size()));
+      particles_.normalIndex[i] = normals_.rewrite(k, toLocal * (from * normals_[k]), std::span<const Vec3>(faces.data(), old.size()));
     }
   }
 }

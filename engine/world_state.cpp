@@ -384,6 +384,7 @@ Status World::restoreState(const StateArchive& archive) {
   for (std::size_t i = 0; i < np && r.ok(); ++i)
     if (p.normalIndex[i] >= 0 && static_cast<std::size_t>(p.normalIndex[i]) >= normals.size())
       r.fail("checkpoint particle " + std::to_string(i) + " points past the normal cache");
+  if (r.ok() && !normals.countUsers(p.normalIndex)) r.fail("a checkpoint particle points to a free normal cache entry");
 
   // broadphase and bond frames
   const std::vector<std::uint32_t> proxied = r.get<std::uint32_t>("broadphase/body");

@@ -5,9 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <numbers>
+#include <span>
+#include <string>
+#include <vector>
 
 #include "volpar/engine/builders/fill.hpp"
 #include "volpar/engine/builders/obj_reader.hpp"
@@ -342,9 +346,23 @@ TEST(SeparatingPlane, PatchesGroupByConnectorAdjacency) {
   for (const ContactPatch& p : s.world.patches().patches) EXPECT_LT(angleDeg(p.normal, -Vec3::UnitZ()), 1e-6);
 }
 
+/// Every entry of the normal cache in use is held by as many particles as point to it, and no particle
+/// points to a free one.
+void expectEntriesCounted(const World& w) {
+  std::vector<std::uint32_t> holders(w.normals().size(), 0);
+  for (std::size_t i = 0; i < w.particles().size(); ++i)
+    if (const std::int32_t k = w.particles().normalIndex[i]; k >= 0) ++holders[static_cast<std::size_t>(k)];
+  std::size_t inUse = 0;
+  for (std::size_t k = 0; k < holders.size(); ++k) {
+    EXPECT_EQ(w.normals().users(static_cast<std::int32_t>(k)), holders[k]) << k;
+    inUse += holders[k] > 0;
+  }
+  EXPECT_EQ(w.normals().used(), inUse);
+}
+
 TEST(NormalCache, PartialRecomputationReproducesTheBuildersNormalsAndFlags) {
   // a 6 x 5 x 4 block: re-estimating particles from their neighbourhood gives exactly the builder's normals,
-  // faces and flags (face, edge, corner, interior), and the cache reuses their entries
+  // faces and flags (face, edge, corner, interior), and the cache counts its entries' particles
   World w = test::worldFromString(R"(
 dt: 0.01
 steps: 1
@@ -367,11 +385,10 @@ bodies:
     if (k >= 0)
       for (const Vec3& f : w.normals().faces(k)) faces.back().push_back(f);
   }
-  const std::size_t entries = w.normals().size();
   std::vector<ParticleId> all;
   for (std::size_t i = 0; i < n; ++i) all.emplace_back(i);
   w.recomputeNormals(all);
-  EXPECT_EQ(w.normals().size(), entries);  // rewritten in place
+  expectEntriesCounted(w);
   int edges = 0, corners = 0;
   for (std::size_t i = 0; i < n; ++i) {
     EXPECT_EQ(w.particles().flags[i], flags[i]) << i;
@@ -389,6 +406,70 @@ bodies:
   }
   EXPECT_EQ(corners, 8);
   EXPECT_EQ(edges, 4 * (4 + 3 + 2));
+}
+
+TEST(NormalCache, RigidBodiesOfOneShapeHoldItsNormalsOnceAndReadWhatTheyWouldAlone) {
+  // three blocks of one shape, turned differently: rigid ones share entries (a face's particles one, each
+  // edge and corner its own), a deformable one keeps its own, and every particle reads the normal and faces it
+  // reads in a world of its body alone, bit for bit
+  const auto block = [](const char* kind, const char* at, const char* axis) {
+    const std::string springs = std::string(kind) == "deformable" ? "    connectors: {springs: {stiffness: 20000}}\n" : "";
+    return std::string("  - shape: {box: {size: [0.6, 0.5, 0.4]}}\n    fill: {radius: 0.05}\n    kind: ") + kind +
+           "\n    position: " + at + "\n    orientation: {axis: " + axis + ", angle_deg: 40}\n" + springs;
+  };
+  const std::string head = "dt: 0.01\nsteps: 1\ngravity: [0, 0, 0]\nbodies:\n";
+  const std::array<std::string, 3> bodies{block("rigid", "[0, 0, 0]", "[1, 2, 3]"), block("rigid", "[3, 0, 0]", "[3, -1, 2]"),
+                                          block("deformable", "[6, 0, 0]", "[0, 1, 1]")};
+  World all = test::worldFromString(head + bodies[0] + bodies[1] + bodies[2]);
+  ASSERT_EQ(all.particles().size() % 3, 0u);
+  const std::size_t perBody = all.particles().size() / 3, surface = 6 * 5 * 4 - 4 * 3 * 2;
+  // 6 faces, 12 edges and 8 corners for the two rigid blocks, and an entry per surface particle of the third
+  EXPECT_EQ(all.normals().used(), 26u + surface);
+  expectEntriesCounted(all);
+  for (std::size_t b = 0; b < 3; ++b) {
+    World alone = test::worldFromString(head + bodies[b]);
+    ASSERT_EQ(alone.particles().size(), perBody);
+    for (std::size_t i = 0; i < perBody; ++i) {
+      const std::int32_t k = all.particles().normalIndex[b * perBody + i], ka = alone.particles().normalIndex[i];
+      ASSERT_EQ(k < 0, ka < 0) << b << " " << i;
+      if (k < 0) continue;
+      EXPECT_EQ(std::memcmp(all.normals()[k].data(), alone.normals()[ka].data(), sizeof(Vec3)), 0) << b << " " << i;
+      const std::span<const Vec3> f = all.normals().faces(k), fa = alone.normals().faces(ka);
+      ASSERT_EQ(f.size(), fa.size());
+      for (std::size_t j = 0; j < f.size(); ++j) EXPECT_EQ(std::memcmp(f[j].data(), fa[j].data(), sizeof(Vec3)), 0);
+    }
+  }
+}
+
+TEST(NormalCache, RewritingAnEntryOneBodySharesLeavesTheOthersNormalsAsTheyWere) {
+  // two blocks of one shape share their entries; re-estimating the first block's normals (as a break does)
+  // changes its entries alone, never what the second block reads
+  World w = test::worldFromString(R"(
+dt: 0.01
+steps: 1
+gravity: [0, 0, 0]
+bodies:
+  - shape: {box: {size: [0.6, 0.5, 0.4]}}
+    fill: {radius: 0.05}
+    orientation: {axis: [1, 2, 3], angle_deg: 40}
+  - shape: {box: {size: [0.6, 0.5, 0.4]}}
+    fill: {radius: 0.05}
+    position: [3, 0, 0]
+)");
+  const std::size_t n = w.particles().size() / 2;
+  std::vector<Vec3> second;
+  for (std::size_t i = n; i < 2 * n; ++i) second.push_back(w.particleNormal(ParticleId(i)));
+  std::vector<ParticleId> first;
+  for (std::size_t i = 0; i < n; ++i) first.emplace_back(i);
+  w.recomputeNormals(first);
+  // (the estimates differ from the builder's in the last bits, so the first block's entries are rewritten)
+  std::size_t own = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (const std::int32_t k = w.particles().normalIndex[i]; k >= 0) own += w.normals().users(k) == 1;
+  EXPECT_GT(own, 0u);
+  for (std::size_t i = n; i < 2 * n; ++i)
+    EXPECT_EQ(std::memcmp(w.particleNormal(ParticleId(i)).data(), second[i - n].data(), sizeof(Vec3)), 0) << i;
+  expectEntriesCounted(w);
 }
 
 }  // namespace

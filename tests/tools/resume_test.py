@@ -181,6 +181,16 @@ damaged("a compressed array", lambda g: (g.__delitem__("particles/radius"),
         "not stored whole")
 damaged("a normal of neither side", set_value("narrow_phase/patch_normal_side", 0, 2), "normal side out of range")
 
+
+def free_entry_in_use(g):
+    # the normal cache entry of particle 0 (shared with the other crates' same particle) listed as free
+    free = np.append(g["normals/free"][()], g["particles/normal_index"][0]).astype(np.uint32)
+    del g["normals/free"]
+    g["normals/free"] = free
+
+
+damaged("a normal entry both free and in use", free_entry_in_use, "points to a free normal cache entry")
+
 # a checkpoint written before the narrow phase kept the side whose face a normal is resumes, with every normal
 # taken over turning with body A as it did then
 older = os.path.join(work, "older-checkpoint.h5")
