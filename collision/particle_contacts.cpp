@@ -130,6 +130,8 @@ void ContactFinder::addBody(BodyId id, const ParticleStore& particles, const Bod
     g.worldFrame = false;
     buildGrid(g, info.particles, particles.local, particles);
   }
+  if (runs_.size() <= id.index()) runs_.resize(id.index() + 1);
+  runs_[id.index()] = runOf(info.particles);
   if (extent_.size() <= id.index()) extent_.resize(id.index() + 1, 0.0);
   double extent = 0.0;
   for (const ParticleId p : info.particles) extent = std::max(extent, particles.local[p.index()].norm());
@@ -242,25 +244,25 @@ void ContactFinder::searchPair(const ParticleStore& p, const BodyStore& bodies, 
     }
     if (touch(p, pa, pb, margin_, sweep, c)) out.contacts.push_back(c);
   };
-  const std::vector<ParticleId>& all0 = bodies.info[a.index()].particles;
-  const std::vector<ParticleId>& all1 = bodies.info[b.index()].particles;
-  if (all0.size() <= kFewParticles && all1.size() <= kFewParticles) {
+  const std::size_t count0 = runs_[a.index()].count, count1 = runs_[b.index()].count;
+  if (count0 <= kFewParticles && count1 <= kFewParticles) {
     // small bodies: every pair of the particles whose reach overlaps the other's grown box (a pair within
     // reach has both; the set of pairs found, which the caller sorts, is the grids')
-    const auto gather = [&](const std::vector<ParticleId>& all, const Aabb& other, std::vector<ParticleId>& into) {
+    const auto gather = [&](BodyId body, const Aabb& other, std::vector<ParticleId>& into) {
       into.clear();
-      for (const ParticleId q : all)
+      forParticles(bodies, body, [&](ParticleId q) {
         if (Aabb::sphere(p.position[q.index()], p.radius[q.index()] + sweep + skin).overlaps(other)) into.push_back(q);
+      });
     };
-    gather(all0, boxB, near[0]);
+    gather(a, boxB, near[0]);
     if (near[0].empty()) return;
-    gather(all1, boxA, near[1]);
+    gather(b, boxA, near[1]);
     for (const ParticleId pa : near[0])
       for (const ParticleId pb : near[1]) consider(pa, pb);
     return;
   }
   // iterate the body with fewer particles, look up the other's grid
-  const bool iterateA = all0.size() <= all1.size();
+  const bool iterateA = count0 <= count1;
   const BodyId it = iterateA ? a : b;
   const BodyId other = iterateA ? b : a;
   const BodyGrid& gi = grids_[it.index()];
@@ -390,14 +392,14 @@ void ContactFinder::planeContacts(const ParticleStore& p, const BodyStore& bodie
                                   const Plane& pl, ContactSet& out) const {
   const std::uint32_t first = static_cast<std::uint32_t>(out.contacts.size());
   const double swept = sweepReach(id, BodyId{}, pl.normal);
-  for (const ParticleId pi : bodies.info[id.index()].particles) {
+  forParticles(bodies, id, [&](ParticleId pi) {
     const double r = p.radius[pi.index()];
     const double height = heightAbove(p, pi, pl);
-    if (!(height < r * (1.0 + margin_) + swept)) continue;
+    if (!(height < r * (1.0 + margin_) + swept)) return;
     ParticleContact c;
     planeContact(p, pi, plane, pl, height, c);
     out.contacts.push_back(c);
-  }
+  });
   const auto count = static_cast<std::uint32_t>(out.contacts.size()) - first;
   if (count > 0) out.groups.push_back({id, BodyId{}, plane, first, count});
 }

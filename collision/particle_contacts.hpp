@@ -206,6 +206,19 @@ class ContactFinder {
 
   LargeVector<BodyGrid> grids_;  // by body index
   LargeVector<double> extent_;   // by body index: farthest particle centre from the body's origin [m]
+  /// A body's particles as the searches walk them (by body index): a run of consecutive ids, read without the
+  /// body's list of ids, or that list
+  LargeVector<ParticleRun> runs_;
+  /// Calls f(particle) for each of body `id`'s particles, ascending.
+  template <class F>
+  void forParticles(const BodyStore& bodies, BodyId id, F&& f) const {
+    const ParticleRun& r = runs_[id.index()];
+    if (r.consecutive) {
+      for (std::uint32_t i = r.first; i < r.first + r.count; ++i) f(ParticleId(i));
+    } else {
+      for (const ParticleId q : bodies.info[id.index()].particles) f(q);
+    }
+  }
   /// What a search reads of each body for every pair it is in, gathered once per find() (by body index).
   struct BodyMotion {
     Vec3 velocity = Vec3::Zero();  // linear [m/s]

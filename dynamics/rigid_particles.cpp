@@ -21,6 +21,16 @@ namespace volpar {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+/// The particles to place, as indices: those of a list of ids, or a run of consecutive ones.
+struct ListedIds {
+  const ParticleId* ids;
+  [[nodiscard]] std::size_t operator()(std::size_t k) const { return ids[k].index(); }
+};
+struct RunOfIds {
+  std::size_t first;
+  [[nodiscard]] std::size_t operator()(std::size_t k) const { return first + k; }
+};
 // (a run of particles' centres is one array of doubles: x, y, z of one, then of the next)
 static_assert(sizeof(Vec3) == 3 * sizeof(double));
 
@@ -49,9 +59,10 @@ VOLPAR_AVX void storeRun(Vec3* at, __m256d x, __m256d y, __m256d z) {
   _mm256_storeu_pd(at->data() + 8, _mm256_permute2f128_pd(s, u, 0x31));
 }
 
-/// The particles ids[0, n), four at a time (a last group of fewer repeats its last particle in the lanes
+/// The particles ids(0) to ids(n - 1), four at a time (a last group of fewer repeats its last particle in the lanes
 /// left over, as two lanes repeat a last one alone); their spheres' box into lo and hi.
-[[gnu::target("avx")]] void placeFours(const Mat3& r, const BodyState& s, const ParticleId* ids, std::size_t n,
+template <class Index>
+[[gnu::target("avx")]] void placeFours(const Mat3& r, const BodyState& s, const Index& ids, std::size_t n,
                                        const Vec3* local, const double* radius, Vec3* position, Vec3* velocity,
                                        std::array<double, 3>& lo, std::array<double, 3>& hi) {
   const __m256d r00 = _mm256_set1_pd(r(0, 0)), r01 = _mm256_set1_pd(r(0, 1)), r02 = _mm256_set1_pd(r(0, 2));
@@ -64,8 +75,8 @@ VOLPAR_AVX void storeRun(Vec3* at, __m256d x, __m256d y, __m256d z) {
                 w2 = _mm256_set1_pd(s.angularVelocity.z());
   __m256d lo0 = _mm256_set1_pd(kInf), lo1 = lo0, lo2 = lo0, hi0 = _mm256_set1_pd(-kInf), hi1 = hi0, hi2 = hi0;
   for (std::size_t k = 0; k < n; k += 4) {
-    const std::size_t i0 = ids[k].index(), i1 = ids[std::min(k + 1, n - 1)].index(),
-                      i2 = ids[std::min(k + 2, n - 1)].index(), i3 = ids[std::min(k + 3, n - 1)].index();
+    const std::size_t i0 = ids(k), i1 = ids(std::min(k + 1, n - 1)), i2 = ids(std::min(k + 2, n - 1)),
+                      i3 = ids(std::min(k + 3, n - 1));
     const bool run = i1 == i0 + 1 && i2 == i0 + 2 && i3 == i0 + 3;
     __m256d lx, ly, lz, rad;
     if (run) {
@@ -113,16 +124,14 @@ VOLPAR_AVX void storeRun(Vec3* at, __m256d x, __m256d y, __m256d z) {
 #undef VOLPAR_AVX
 #endif
 
-}  // namespace
-
-ParticleBounds placeRigidParticles(const BodyState& s, std::span<const ParticleId> ids, const Vec3* local,
-                                   const double* radius, Vec3* position, Vec3* velocity, [[maybe_unused]] bool wide) {
+template <class Index>
+ParticleBounds place(const BodyState& s, const Index& ids, std::size_t n, const Vec3* local, const double* radius,
+                     Vec3* position, Vec3* velocity, [[maybe_unused]] bool wide) {
   const Mat3 r = s.orientation.toRotationMatrix();
-  const std::size_t n = ids.size();
   std::array<double, 3> lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
 #if VOLPAR_RIGID_WIDE
   if (wide && processorHasAvx()) {
-    placeFours(r, s, ids.data(), n, local, radius, position, velocity, lo, hi);
+    placeFours(r, s, ids, n, local, radius, position, velocity, lo, hi);
     return {Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])};
   }
 #endif
@@ -159,8 +168,8 @@ ParticleBounds placeRigidParticles(const BodyState& s, std::span<const ParticleI
     hi0 = _mm_max_pd(hi0, _mm_add_pd(x0, rad)), hi1 = _mm_max_pd(hi1, _mm_add_pd(x1, rad)), hi2 = _mm_max_pd(hi2, _mm_add_pd(x2, rad));
   };
   std::size_t k = 0;
-  for (; k + 1 < n; k += 2) place(ids[k].index(), ids[k + 1].index());
-  if (k < n) place(ids[k].index(), ids[k].index());
+  for (; k + 1 < n; k += 2) place(ids(k), ids(k + 1));
+  if (k < n) place(ids(k), ids(k));
   const auto low = [](__m128d m) { return std::min(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m))); };
   const auto high = [](__m128d m) { return std::max(_mm_cvtsd_f64(m), _mm_cvtsd_f64(_mm_unpackhi_pd(m, m))); };
   lo = {low(lo0), low(lo1), low(lo2)};
@@ -168,7 +177,7 @@ ParticleBounds placeRigidParticles(const BodyState& s, std::span<const ParticleI
 #else
   const Vec3 c = s.position, v = s.linearVelocity, w = s.angularVelocity;
   for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t i = ids[k].index();
+    const std::size_t i = ids(k);
     const Vec3& l = local[i];
     const double ax = (r(0, 0) * l.x() + r(0, 1) * l.y()) + r(0, 2) * l.z();
     const double ay = (r(1, 0) * l.x() + r(1, 1) * l.y()) + r(1, 2) * l.z();
@@ -182,6 +191,18 @@ ParticleBounds placeRigidParticles(const BodyState& s, std::span<const ParticleI
   }
 #endif
   return {Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])};
+}
+
+}  // namespace
+
+ParticleBounds placeRigidParticles(const BodyState& s, std::span<const ParticleId> ids, const Vec3* local,
+                                   const double* radius, Vec3* position, Vec3* velocity, bool wide) {
+  return place(s, ListedIds{ids.data()}, ids.size(), local, radius, position, velocity, wide);
+}
+
+ParticleBounds placeRigidParticles(const BodyState& s, ParticleRun run, const Vec3* local, const double* radius,
+                                   Vec3* position, Vec3* velocity, bool wide) {
+  return place(s, RunOfIds{run.first}, run.count, local, radius, position, velocity, wide);
 }
 
 }  // namespace volpar

@@ -23,5 +23,8 @@ struct ParticleBounds {
 /// numbered (a run of four consecutive ids is read and written four at a time).
 ParticleBounds placeRigidParticles(const BodyState& s, std::span<const ParticleId> ids, const Vec3* local,
                                    const double* radius, Vec3* position, Vec3* velocity, bool wide = true);
+/// The same for the particles of a run of consecutive ids (`run.consecutive`), placed as their list would be.
+ParticleBounds placeRigidParticles(const BodyState& s, ParticleRun run, const Vec3* local, const double* radius,
+                                   Vec3* position, Vec3* velocity, bool wide = true);
 
 }  // namespace volpar

@@ -192,6 +192,7 @@ Result<BodyId> World::addBody(const BodyDef& def, const ParticleCloud& cloud) {
   bodies_.add(state, std::move(info));
   bodyKinds_.push_back(bodies_.info.back().kind);
   bodyMaterials_.push_back(bodies_.info.back().material);
+  bodyRuns_.push_back(runOf(bodies_.info.back().particles));
   rodForces_.emplace_back();
   bondLoads_.emplace_back();
   bodyBoxes_.emplace_back();
@@ -611,9 +612,14 @@ void World::integratePositions() {
 }
 
 void World::updateRigidParticles(BodyId id) {
-  const ParticleBounds box = placeRigidParticles(bodies_.state[id.index()], bodies_.info[id.index()].particles,
-                                                 particles_.local.data(), particles_.radius.data(),
-                                                 particles_.position.data(), particles_.velocity.data());
+  // (a run of ids read as such, without the body's list)
+  const ParticleRun run = bodyRuns_[id.index()];
+  const ParticleBounds box =
+      run.consecutive
+          ? placeRigidParticles(bodies_.state[id.index()], run, particles_.local.data(), particles_.radius.data(),
+                                particles_.position.data(), particles_.velocity.data())
+          : placeRigidParticles(bodies_.state[id.index()], bodies_.info[id.index()].particles, particles_.local.data(),
+                                particles_.radius.data(), particles_.position.data(), particles_.velocity.data());
   bodyBoxes_[id.index()] = Aabb{box.lo, box.hi};
 }
 

@@ -306,6 +306,7 @@ class World {
   /// step (a BodyInfo takes several cache lines); written wherever a body is added or restored.
   LargeVector<BodyKind> bodyKinds_;            // [B]
   LargeVector<MaterialId> bodyMaterials_;      // [B]
+  LargeVector<ParticleRun> bodyRuns_;          // [B] each body's particles as a run of ids, where they are one
   LargeVector<std::unique_ptr<RodForces>> rodForces_;       // [B], for rigid bodies with breakable rods
   LargeVector<std::unique_ptr<BondLoads>> bondLoads_;       // [B], for rigid bodies with breakable bonds
   LargeVector<BodyId> breakableRigid_;

@@ -311,6 +311,7 @@ void World::moveParticles(std::span<const ParticleId> ids, BodyId id, const Vec3
 BodyId World::addRigidBody(const BodyState& state, BodyInfo info, std::vector<ConnectorId> connectors) {
   const BodyId id = bodies_.add(state, std::move(info));
   bodyKinds_.push_back(bodies_.info.back().kind);
+  bodyRuns_.push_back(runOf(bodies_.info.back().particles));
   bodyMaterials_.push_back(bodies_.info.back().material);
   bodyBoxes_.emplace_back();
   rodForces_.emplace_back();
@@ -331,6 +332,7 @@ void World::retireBody(BodyId id, std::int64_t step) {
   retired.alive = false;
   retired.retiredStep = step;
   retired.particles.clear();
+  bodyRuns_[id.index()] = runOf(retired.particles);
   bodies_.state[id.index()].invMass = 0.0;
   broadphase_.removeBody(id);
   rodForces_[id.index()].reset();

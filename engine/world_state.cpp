@@ -478,7 +478,9 @@ Status World::restoreState(const StateArchive& archive) {
     if (bodies_.info[i].alive && bodies_.info[i].kind == BodyKind::Rigid) rigidBodies_.emplace_back(i);
   bodyKinds_.resize(nb);
   bodyMaterials_.resize(nb);
-  for (std::size_t i = 0; i < nb; ++i) bodyKinds_[i] = bodies_.info[i].kind, bodyMaterials_[i] = bodies_.info[i].material;
+  bodyRuns_.resize(nb);
+  for (std::size_t i = 0; i < nb; ++i)
+    bodyKinds_[i] = bodies_.info[i].kind, bodyMaterials_[i] = bodies_.info[i].material, bodyRuns_[i] = runOf(bodies_.info[i].particles);
   rodForces_.clear();
   bondLoads_.clear();
   rodForces_.resize(nb);

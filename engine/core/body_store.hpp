@@ -65,6 +65,22 @@ struct BodyInfo {
   bool breakable = false;
 };
 
+/// A body's particles as a run of consecutive ids where they are one (the particles of a body as built are;
+/// a fragment's need not be): hot loops read the run instead of the body's list.
+struct ParticleRun {
+  std::uint32_t first = 0, count = 0;
+  bool consecutive = false;  ///< the ids are first, first + 1, ..., first + count - 1
+};
+
+/// The run of a body's list of particles (ascending).
+[[nodiscard]] inline ParticleRun runOf(const std::vector<ParticleId>& particles) {
+  ParticleRun r;
+  r.count = static_cast<std::uint32_t>(particles.size());
+  r.first = particles.empty() ? 0 : particles.front().value;
+  r.consecutive = particles.empty() || particles.back().value - particles.front().value + 1 == r.count;
+  return r;
+}
+
 struct BodyStore {
   LargeVector<BodyState> state;  ///< [B]
   LargeVector<BodyInfo> info;    ///< [B]

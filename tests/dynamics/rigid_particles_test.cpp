@@ -1,7 +1,8 @@
 // A rigid body's particles at its pose (placeRigidParticles): four at a time in AVX lanes where the processor
 // has AVX, two at a time otherwise. Both give, bit for bit, the particle-by-particle arithmetic written out
 // below: positions, velocities and the box of the spheres, for bodies of any size whose particles are
-// numbered in runs, backwards, shuffled or in runs broken at any place, and leave every other particle alone.
+// numbered in runs, backwards, shuffled or in runs broken at any place, or given as a run by its first id and
+// count, and leave every other particle alone.
 
 #include <gtest/gtest.h>
 
@@ -100,6 +101,14 @@ TEST(RigidParticles, FourAndTwoLanesGiveTheParticleByParticleArithmetic) {
           got.box = placeRigidParticles(s, numbering, local.data(), radius.data(), got.position.data(), got.velocity.data(), wide);
           expectSame(got, want, std::string(wide ? "four lanes, " : "two lanes, ") + how + ", " + std::to_string(n) + " particles");
         }
+      }
+      // the run itself, given as its first id and count instead of its list
+      const ParticleRun run{static_cast<std::uint32_t>(start), static_cast<std::uint32_t>(n), true};
+      const Placed want = reference(s, numberings.front().second, local, radius, untouched);
+      for (const bool wide : {false, true}) {
+        Placed got = untouched;
+        got.box = placeRigidParticles(s, run, local.data(), radius.data(), got.position.data(), got.velocity.data(), wide);
+        expectSame(got, want, std::string(wide ? "four lanes, " : "two lanes, ") + "a run by its first id, " + std::to_string(n) + " particles");
       }
     }
   }
