@@ -118,6 +118,11 @@ struct NarrowPhaseInput {
   /// The bodies' whole polytope cores, where they have one (null: none; the narrow phase then rebuilds
   /// every core from the local particles)
   const PolytopeCores* cores = nullptr;
+  /// Each body's kind, compact (as bodies->info[b].kind, which takes a cache line of a BodyInfo to read);
+  /// empty: read from bodies
+  std::span<const BodyKind> kinds;
+
+  [[nodiscard]] BodyKind kindOf(BodyId b) const { return kinds.empty() ? bodies->info[b.index()].kind : kinds[b.index()]; }
 };
 
 }  // namespace volpar

@@ -50,8 +50,8 @@ void NarrowPhase::clearCache() { cache_.clear(); }
 
 bool NarrowPhase::cacheable(const NarrowPhaseInput& in, const ContactGroup& g) {
   if (g.a == g.b) return false;  // self-contact of a deformable body
-  if (in.bodies->info[g.a.index()].kind == BodyKind::Deformable) return false;
-  return g.plane.valid() || in.bodies->info[g.b.index()].kind != BodyKind::Deformable;
+  if (in.kindOf(g.a) == BodyKind::Deformable) return false;
+  return g.plane.valid() || in.kindOf(g.b) != BodyKind::Deformable;
 }
 
 NarrowPhase::GroupKey NarrowPhase::keyOf(const ContactGroup& g) {

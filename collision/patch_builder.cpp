@@ -77,7 +77,7 @@ void PatchBuilder::build(const NarrowPhaseInput& in, const ContactSet& set, cons
     std::sort(byParticle_.begin(), byParticle_.end());
   }
   if (side_.size() < in.particles->size()) side_.resize(in.particles->size(), 0);
-  const auto deformable = [&](BodyId b) { return b.valid() && in.bodies->info[b.index()].kind == BodyKind::Deformable; };
+  const auto deformable = [&](BodyId b) { return b.valid() && in.kindOf(b) == BodyKind::Deformable; };
   const double minCos = std::cos(deformable(g.a) || deformable(g.b) ? deformableSpread : spread);
   const auto near = [&](ParticleId x, ParticleId y) { return x == y || in.finder->connected(x, y); };
   for (const std::uint32_t seed : seeds_) {

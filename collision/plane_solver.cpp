@@ -839,7 +839,7 @@ PlaneSolver::Choice PlaneSolver::separationPlane(const NarrowPhaseInput& in, con
   // along its folds, would cut off a polytope that is not there)
   const auto thinDeformable = [&](const Side& side) {
     const ParticleStore& p = *in.particles;
-    if (in.bodies->info[p.body[side.particles.front().index()].index()].kind != BodyKind::Deformable) return false;
+    if (in.kindOf(p.body[side.particles.front().index()]) != BodyKind::Deformable) return false;
     for (const ParticleId q : side.particles)
       if (!(p.flags[q.index()] & (kParticleSheet | kParticleLine))) return false;
     return true;
@@ -980,7 +980,7 @@ bool PlaneSolver::lookAhead(const NarrowPhaseInput& in, bool single, double sink
   // each local particle's velocity: its rigid body's motion at it, a deformable particle's own
   const auto velocity = [&](const Local& q) -> Vec3 {
     const BodyId b = p.body[q.id.index()];
-    switch (bodies.info[b.index()].kind) {
+    switch (in.kindOf(b)) {
       case BodyKind::Static: return Vec3::Zero();
       case BodyKind::Deformable: return p.velocity[q.id.index()];
       default: {
@@ -1316,7 +1316,7 @@ void PlaneSolver::solve(const NarrowPhaseInput& in, const ContactSet& set, std::
   // where the plane is not settled by exact features, the cores are rebuilt from one ring more between two
   // rigid bodies: a face that bounds the core near the contact (an edge's second face, a staircase's next
   // step) may carry no particle of the first ring
-  const auto rigid = [&](BodyId b) { return in.bodies->info[b.index()].kind != BodyKind::Deformable; };
+  const auto rigid = [&](BodyId b) { return in.kindOf(b) != BodyKind::Deformable; };
   if (plane.found && !plane.settled && rigid(patch.a) && rigid(patch.b)) {
     gatherSides(settings_.validationRings + 1);
     const Choice wide = separationPlane(in, d0);

@@ -44,6 +44,7 @@ NarrowPhaseInput World::narrowPhaseInput() const {
   in.planes = planes_;
   in.dt = settings_.dt;
   in.cores = &cores_;
+  in.kinds = std::span<const BodyKind>(bodyKinds_.data(), bodyKinds_.size());
   return in;
 }
 
@@ -354,7 +355,7 @@ void World::integrateVelocities() {
 
 std::uint32_t* World::solverSlot(ParticleId p) {
   const BodyId b = particles_.body[p.index()];
-  switch (bodies_.info[b.index()].kind) {
+  switch (bodyKinds_[b.index()]) {
     case BodyKind::Static: return nullptr;
     case BodyKind::Rigid: return &bodySolverIndex_[b.index()];
     default: return &particleSolverIndex_[p.index()];
@@ -367,7 +368,7 @@ std::uint32_t World::solverIndex(ParticleId p) {
   std::uint32_t& slot = *found;
   if (slot != ContactPointInput::kFixed) return slot;
   const BodyId b = particles_.body[p.index()];
-  if (bodies_.info[b.index()].kind == BodyKind::Rigid) return rigidSolverIndex(b);
+  if (bodyKinds_[b.index()] == BodyKind::Rigid) return rigidSolverIndex(b);
   slot = static_cast<std::uint32_t>(solverBodyOwner_.size());
   solverBodyOwner_.emplace_back();
   solverParticleOwner_.push_back(p);
@@ -558,8 +559,8 @@ void World::integratePositions() {
   // contact solver
   deformableContacts_.clear();
   for (const ContactPatch& patch : patches_.patches) {
-    const bool aDef = bodies_.info[patch.a.index()].kind == BodyKind::Deformable;
-    const bool bDef = patch.b.valid() && bodies_.info[patch.b.index()].kind == BodyKind::Deformable;
+    const bool aDef = bodyKinds_[patch.a.index()] == BodyKind::Deformable;
+    const bool bDef = patch.b.valid() && bodyKinds_[patch.b.index()] == BodyKind::Deformable;
     if (!aDef && !bDef) continue;
     for (std::uint32_t k = patch.first; k < patch.first + patch.count; ++k) {
       const ParticleContact& c = contacts_.contacts[patches_.contacts[k]];
