@@ -412,8 +412,8 @@ void World::makeSolverBodies() {
 }
 
 std::pair<const Material*, const Material*> World::contactMaterials(ParticleId a, ParticleId b, PlaneId plane) const {
-  const Material& ma = materials_[bodies_.info[particles_.body[a.index()].index()].material.index()];
-  const MaterialId mb = plane.valid() ? planes_[plane.index()].material : bodies_.info[particles_.body[b.index()].index()].material;
+  const Material& ma = materials_[bodyMaterials_[particles_.body[a.index()].index()].index()];
+  const MaterialId mb = plane.valid() ? planes_[plane.index()].material : bodyMaterials_[particles_.body[b.index()].index()];
   return {&ma, &materials_[mb.index()]};
 }
 
@@ -489,7 +489,7 @@ void World::resistRolling() {
     const auto [ma, mb] = contactMaterials(patch.a, patch.b, patch.plane);
     const double mu = std::max(ma->rollingResistance, mb->rollingResistance);
     if (mu <= 0.0) continue;
-    const auto kindOf = [&](BodyId b) { return b.valid() ? bodies_.info[b.index()].kind : BodyKind::Static; };
+    const auto kindOf = [&](BodyId b) { return b.valid() ? bodyKinds_[b.index()] : BodyKind::Static; };
     const BodyKind ka = kindOf(patch.a), kb = kindOf(patch.b);
     if (ka == BodyKind::Deformable || kb == BodyKind::Deformable || (ka != BodyKind::Rigid && kb != BodyKind::Rigid)) continue;
     const Vec3& n = patch.normal;
@@ -599,7 +599,7 @@ void World::integratePositions() {
     if (!ct.other.valid() || (j.isZero() && moment.isZero())) continue;
     const BodyId b = particles_.body[ct.other.index()];
     BodyState& s = bodies_.state[b.index()];
-    if (bodies_.info[b.index()].kind != BodyKind::Rigid || s.invMass == 0.0) continue;
+    if (bodyKinds_[b.index()] != BodyKind::Rigid || s.invMass == 0.0) continue;
     // (the opposite of what the particle got: its momentum, and its angular momentum about the origin,
     // which about the body's centre is moment - c x j)
     s.linearVelocity -= s.invMass * j;
