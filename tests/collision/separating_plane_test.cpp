@@ -346,6 +346,18 @@ TEST(SeparatingPlane, PatchesGroupByConnectorAdjacency) {
   for (const ContactPatch& p : s.world.patches().patches) EXPECT_LT(angleDeg(p.normal, -Vec3::UnitZ()), 1e-6);
 }
 
+/// A scene without gravity, to which block() adds bodies.
+const std::string kBlocks = "dt: 0.01\nsteps: 1\ngravity: [0, 0, 0]\nbodies:\n";
+
+/// A 6 x 5 x 4 block (0.6 x 0.5 x 0.4 m filled at r = 0.05 m) of `kind` at `at`, turned by `angleDeg` about
+/// `axis` (a deformable one with springs).
+std::string block(const char* kind, const char* at, const char* axis, int angleDeg = 40) {
+  const std::string springs = std::string(kind) == "deformable" ? "    connectors: {springs: {stiffness: 20000}}\n" : "";
+  return std::string("  - shape: {box: {size: [0.6, 0.5, 0.4]}}\n    fill: {radius: 0.05}\n    kind: ") + kind +
+         "\n    position: " + at + "\n    orientation: {axis: " + axis + ", angle_deg: " + std::to_string(angleDeg) + "}\n" +
+         springs;
+}
+
 /// Every entry of the normal cache in use is held by as many particles as point to it, and no particle
 /// points to a free one.
 void expectEntriesCounted(const World& w) {
@@ -363,15 +375,7 @@ void expectEntriesCounted(const World& w) {
 TEST(NormalCache, PartialRecomputationReproducesTheBuildersNormalsAndFlags) {
   // a 6 x 5 x 4 block: re-estimating particles from their neighbourhood gives exactly the builder's normals,
   // faces and flags (face, edge, corner, interior), and the cache counts its entries' particles
-  World w = test::worldFromString(R"(
-dt: 0.01
-steps: 1
-gravity: [0, 0, 0]
-bodies:
-  - shape: {box: {size: [0.6, 0.5, 0.4]}}
-    fill: {radius: 0.05}
-    orientation: {axis: [1, 2, 3], angle_deg: 40}
-)");
+  World w = test::worldFromString(kBlocks + block("rigid", "[0, 0, 0]", "[1, 2, 3]"));
   w.refreshContacts();
   const std::size_t n = w.particles().size();
   std::vector<Vec3> normals;
@@ -412,22 +416,16 @@ TEST(NormalCache, RigidBodiesOfOneShapeHoldItsNormalsOnceAndReadWhatTheyWouldAlo
   // three blocks of one shape, turned differently: rigid ones share entries (a face's particles one, each
   // edge and corner its own), a deformable one keeps its own, and every particle reads the normal and faces it
   // reads in a world of its body alone, bit for bit
-  const auto block = [](const char* kind, const char* at, const char* axis) {
-    const std::string springs = std::string(kind) == "deformable" ? "    connectors: {springs: {stiffness: 20000}}\n" : "";
-    return std::string("  - shape: {box: {size: [0.6, 0.5, 0.4]}}\n    fill: {radius: 0.05}\n    kind: ") + kind +
-           "\n    position: " + at + "\n    orientation: {axis: " + axis + ", angle_deg: 40}\n" + springs;
-  };
-  const std::string head = "dt: 0.01\nsteps: 1\ngravity: [0, 0, 0]\nbodies:\n";
   const std::array<std::string, 3> bodies{block("rigid", "[0, 0, 0]", "[1, 2, 3]"), block("rigid", "[3, 0, 0]", "[3, -1, 2]"),
                                           block("deformable", "[6, 0, 0]", "[0, 1, 1]")};
-  World all = test::worldFromString(head + bodies[0] + bodies[1] + bodies[2]);
+  World all = test::worldFromString(kBlocks + bodies[0] + bodies[1] + bodies[2]);
   ASSERT_EQ(all.particles().size() % 3, 0u);
   const std::size_t perBody = all.particles().size() / 3, surface = 6 * 5 * 4 - 4 * 3 * 2;
   // 6 faces, 12 edges and 8 corners for the two rigid blocks, and an entry per surface particle of the third
   EXPECT_EQ(all.normals().used(), 26u + surface);
   expectEntriesCounted(all);
   for (std::size_t b = 0; b < 3; ++b) {
-    World alone = test::worldFromString(head + bodies[b]);
+    World alone = test::worldFromString(kBlocks + bodies[b]);
     ASSERT_EQ(alone.particles().size(), perBody);
     for (std::size_t i = 0; i < perBody; ++i) {
       const std::int32_t k = all.particles().normalIndex[b * perBody + i], ka = alone.particles().normalIndex[i];
@@ -444,18 +442,7 @@ TEST(NormalCache, RigidBodiesOfOneShapeHoldItsNormalsOnceAndReadWhatTheyWouldAlo
 TEST(NormalCache, RewritingAnEntryOneBodySharesLeavesTheOthersNormalsAsTheyWere) {
   // two blocks of one shape share their entries; re-estimating the first block's normals (as a break does)
   // changes its entries alone, never what the second block reads
-  World w = test::worldFromString(R"(
-dt: 0.01
-steps: 1
-gravity: [0, 0, 0]
-bodies:
-  - shape: {box: {size: [0.6, 0.5, 0.4]}}
-    fill: {radius: 0.05}
-    orientation: {axis: [1, 2, 3], angle_deg: 40}
-  - shape: {box: {size: [0.6, 0.5, 0.4]}}
-    fill: {radius: 0.05}
-    position: [3, 0, 0]
-)");
+  World w = test::worldFromString(kBlocks + block("rigid", "[0, 0, 0]", "[1, 2, 3]") + block("rigid", "[3, 0, 0]", "[0, 0, 1]", 0));
   const std::size_t n = w.particles().size() / 2;
   std::vector<Vec3> second;
   for (std::size_t i = n; i < 2 * n; ++i) second.push_back(w.particleNormal(ParticleId(i)));
