@@ -41,7 +41,7 @@ std::int32_t AabbTree::createProxy(const Aabb& tight, double margin, std::uint32
   const std::int32_t leaf = allocate();
   Node& n = nodes_[static_cast<std::size_t>(leaf)];
   n.box = fatten(tight, margin, Vec3::Zero());
-  n.userData = userData;
+  n.child2 = static_cast<std::int32_t>(userData);
   insertLeaf(leaf);
   ++leafCount_;
   return leaf;
@@ -54,16 +54,16 @@ void AabbTree::destroyProxy(std::int32_t proxy) {
   --leafCount_;
 }
 
+bool AabbTree::keepsFatBox(const Aabb& fat, const Aabb& tight, double margin, const Vec3& displacement) {
+  if (!fat.contains(tight)) return false;
+  // still inside; but a box left huge by earlier fast motion is shrunk (as Box2D does)
+  return fatten(tight, margin, displacement).expanded(4.0 * margin).contains(fat);
+}
+
 bool AabbTree::moveProxy(std::int32_t proxy, const Aabb& tight, double margin, const Vec3& displacement) {
-  Node& n = nodes_[static_cast<std::size_t>(proxy)];
-  const Aabb fat = fatten(tight, margin, displacement);
-  if (n.box.contains(tight)) {
-    // still inside; but a box left huge by earlier fast motion is shrunk (as Box2D does)
-    const Aabb huge = fat.expanded(4.0 * margin);
-    if (huge.contains(n.box)) return false;
-  }
+  if (keepsFatBox(nodes_[static_cast<std::size_t>(proxy)].box, tight, margin, displacement)) return false;
   removeLeaf(proxy);
-  nodes_[static_cast<std::size_t>(proxy)].box = fat;
+  nodes_[static_cast<std::size_t>(proxy)].box = fatten(tight, margin, displacement);
   insertLeaf(proxy);
   return true;
 }
@@ -142,13 +142,19 @@ void AabbTree::removeLeaf(std::int32_t leaf) {
 }
 
 void AabbTree::refit(std::int32_t index) {
-  while (index != kNull) {
+  // a node above the first that neither turns nor changes its box or height leaves every node above it
+  // as it was, so the walk stops there
+  for (bool first = true; index != kNull; first = false) {
+    const std::int32_t before = index;
     index = balance(index);
     Node& n = nodes_[static_cast<std::size_t>(index)];
     const Node& c1 = nodes_[static_cast<std::size_t>(n.child1)];
     const Node& c2 = nodes_[static_cast<std::size_t>(n.child2)];
-    n.height = 1 + std::max(c1.height, c2.height);
-    n.box = c1.box.merged(c2.box);
+    const std::int32_t height = 1 + std::max(c1.height, c2.height);
+    const Aabb box = c1.box.merged(c2.box);
+    if (!first && index == before && height == n.height && box.lo == n.box.lo && box.hi == n.box.hi) return;
+    n.height = height;
+    n.box = box;
     index = n.parent;
   }
 }
@@ -207,7 +213,7 @@ std::string AabbTree::validateNode(std::int32_t i, int& leaves) const {
   if (n.height < 0) return "node " + std::to_string(i) + " is on the free list but in the tree";
   if (!n.box.valid()) return "node " + std::to_string(i) + " has an empty box";
   if (n.leaf()) {
-    if (n.child2 != kNull || n.height != 0) return "leaf " + std::to_string(i) + " malformed";
+    if (n.height != 0) return "leaf " + std::to_string(i) + " malformed";
     ++leaves;
     return "";
   }

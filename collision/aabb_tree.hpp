@@ -43,9 +43,14 @@ class AabbTree {
   /// otherwise the proxy is reinserted with a box grown by `margin` and by `displacement` [m] (the
   /// expected motion until the next update) and true is returned.
   bool moveProxy(std::int32_t proxy, const Aabb& tight, double margin, const Vec3& displacement);
+  /// Whether a proxy whose fat box is `fat` stays as it is when moved to `tight` (moveProxy's test, for a
+  /// caller that holds the fat boxes apart from the tree's nodes and so can test without touching them).
+  [[nodiscard]] static bool keepsFatBox(const Aabb& fat, const Aabb& tight, double margin, const Vec3& displacement);
 
   [[nodiscard]] const Aabb& fatAabb(std::int32_t proxy) const { return nodes_[static_cast<std::size_t>(proxy)].box; }
-  [[nodiscard]] std::uint32_t userData(std::int32_t proxy) const { return nodes_[static_cast<std::size_t>(proxy)].userData; }
+  [[nodiscard]] std::uint32_t userData(std::int32_t proxy) const {
+    return static_cast<std::uint32_t>(nodes_[static_cast<std::size_t>(proxy)].child2);
+  }
   [[nodiscard]] std::size_t proxyCount() const { return leafCount_; }
   /// Height of the tree (a single leaf has height 0; empty: -1).
   [[nodiscard]] int height() const { return root_ == kNull ? -1 : nodes_[static_cast<std::size_t>(root_)].height; }
@@ -74,15 +79,16 @@ class AabbTree {
   [[nodiscard]] std::string validate() const;
 
  private:
-  struct Node {
+  /// One cache line: a traversal reads one line per node it visits.
+  struct alignas(64) Node {
     Aabb box;
     std::int32_t parent = kNull;  ///< also the next free node while on the free list
-    std::int32_t child1 = kNull;
-    std::int32_t child2 = kNull;
+    std::int32_t child1 = kNull;  ///< kNull: a leaf
+    std::int32_t child2 = kNull;  ///< a leaf's user data (as the bits of a std::uint32_t)
     std::int32_t height = -1;     ///< leaf 0, free -1
-    std::uint32_t userData = 0;
     [[nodiscard]] bool leaf() const { return child1 == kNull; }
   };
+  static_assert(sizeof(Node) == 64);
 
   std::int32_t allocate();
   void release(std::int32_t node);

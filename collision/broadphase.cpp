@@ -9,6 +9,7 @@ void Broadphase::addBody(BodyId id, const Aabb& tight, bool isStatic) {
   Proxy& p = proxies_[id.index()];
   p.isStatic = isStatic;
   p.node = (isStatic ? static_ : moving_).createProxy(tight, isStatic ? 0.0 : margin_, id.value);
+  keepFatBox(id);
   if (!isStatic) movingBodies_.insert(std::lower_bound(movingBodies_.begin(), movingBodies_.end(), id), id);
   if (moved_.size() <= id.index()) moved_.resize(id.index() + 1, 0);
   pairsDirty_ = true;
@@ -23,21 +24,25 @@ void Broadphase::removeBody(BodyId id) {
   pairsDirty_ = true;
 }
 
+void Broadphase::keepFatBox(BodyId id) {
+  const Proxy& p = proxies_[id.index()];
+  if (fat_.size() <= id.index()) fat_.resize(id.index() + 1);
+  fat_[id.index()] = (p.isStatic ? static_ : moving_).fatAabb(p.node);
+}
+
 void Broadphase::moveBody(BodyId id, const Aabb& tight, const Vec3& displacement) {
   const Proxy& p = proxies_[id.index()];
   VOLPAR_ASSERT(!p.isStatic && p.node != AabbTree::kNull, "only moving bodies move");
-  if (moving_.moveProxy(p.node, tight, margin_, displacement)) {
-    ++reinsertions_;
-    if (!moved_[id.index()]) {
-      moved_[id.index()] = 1;
-      movedList_.push_back(id);
-    }
+  // the test on the compact copy of the fat box; the tree's node is read only for a box that moves
+  if (keepsFatBox(id, tight, displacement)) return;
+  const bool moved = moving_.moveProxy(p.node, tight, margin_, displacement);
+  VOLPAR_ASSERT(moved, "the tree's fat box is the one kept apart");
+  keepFatBox(id);
+  ++reinsertions_;
+  if (!moved_[id.index()]) {
+    moved_[id.index()] = 1;
+    movedList_.push_back(id);
   }
-}
-
-const Aabb& Broadphase::fatBox(BodyId id) const {
-  const Proxy& p = proxies_[id.index()];
-  return (p.isStatic ? static_ : moving_).fatAabb(p.node);
 }
 
 void Broadphase::rebuildPairs() {
@@ -70,19 +75,25 @@ void Broadphase::queryMoved(std::size_t begin, std::size_t end, std::vector<Body
   }
 }
 
-void Broadphase::findPairs(std::span<const Plane> planes, std::vector<BodyPair>& pairs,
-                           std::vector<BodyPlanePair>& planePairs, ThreadPool* pool) {
+void Broadphase::findPlanePairs(BodyId id, std::span<const Plane> planes, std::vector<BodyPlanePair>& out) const {
+  const Aabb& box = fatBox(id);
+  // the box reaches below a plane when its lowest corner along the normal does
+  for (std::size_t k = 0; k < planes.size(); ++k) {
+    const Plane& pl = planes[k];
+    const double lowest = pl.normal.dot(box.centre()) - pl.normal.cwiseAbs().dot(0.5 * (box.hi - box.lo));
+    if (lowest <= pl.offset) out.push_back({id, PlaneId(k)});
+  }
+}
+
+void Broadphase::findPairs(std::span<const Plane> planes, ThreadPool* pool) {
+  const bool everyBody = pairsDirty_;
   if (pairsDirty_) {
     rebuildPairs();
     pairsDirty_ = false;
   } else if (!movedList_.empty()) {
-    // pairs of rebuilt fat boxes: drop those that no longer overlap ...
-    auto stale = [&](const BodyPair& pr) {
-      return (moved_[pr.a.index()] || moved_[pr.b.index()]) && !fatBox(pr.a).overlaps(fatBox(pr.b));
-    };
-    pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), stale), pairs_.end());
-    // ... and find their pairs anew (a pair of two rebuilt boxes is found from the smaller id only; the
-    // queries in chunks of the rebuilt bodies where threads share them, their pairs sorted together)
+    // find the pairs of rebuilt fat boxes anew (a pair of two rebuilt boxes is found from the smaller id
+    // only; the queries in chunks of the rebuilt bodies where threads share them, their pairs sorted
+    // together) ...
     fresh_.clear();
     const std::size_t moved = movedList_.size();
     if (pool && pool->worthSharing(moved, 64)) {
@@ -97,26 +108,56 @@ void Broadphase::findPairs(std::span<const Plane> planes, std::vector<BodyPair>&
       queryMoved(0, moved, fresh_);
     }
     std::sort(fresh_.begin(), fresh_.end());
+    // ... and, in one pass over the kept list, drop the pairs of rebuilt boxes that no longer overlap and
+    // merge the fresh pairs in, each pair once (a fresh pair already kept is written once: equal pairs
+    // meet in a row)
+    auto stale = [&](const BodyPair& pr) {
+      return (moved_[pr.a.index()] || moved_[pr.b.index()]) && !fatBox(pr.a).overlaps(fatBox(pr.b));
+    };
     merged_.resize(pairs_.size() + fresh_.size());
-    merged_.erase(std::merge(pairs_.begin(), pairs_.end(), fresh_.begin(), fresh_.end(), merged_.begin()), merged_.end());
-    merged_.erase(std::unique(merged_.begin(), merged_.end()), merged_.end());
+    auto out = merged_.begin();
+    auto emit = [&](const BodyPair& pr) {
+      if (out == merged_.begin() || out[-1] != pr) *out++ = pr;
+    };
+    auto f = fresh_.cbegin();
+    const auto fEnd = fresh_.cend();
+    for (const BodyPair& pr : pairs_) {
+      for (; f != fEnd && *f < pr; ++f) emit(*f);
+      if (!stale(pr)) emit(pr);
+    }
+    for (; f != fEnd; ++f) emit(*f);
+    merged_.erase(out, merged_.end());
     std::swap(pairs_, merged_);
   }
+  // the plane pairs: every body's afresh when the bodies or the planes changed, otherwise only the
+  // rebuilt boxes' (the others' boxes and the planes are as they were)
+  auto samePlane = [](const Plane& x, const Plane& y) { return x.normal == y.normal && x.offset == y.offset; };
+  const bool planesChanged =
+      planes.size() != planesSeen_.size() || !std::equal(planes.begin(), planes.end(), planesSeen_.begin(), samePlane);
+  if (everyBody || planesChanged) {
+    planesSeen_.assign(planes.begin(), planes.end());
+    planePairs_.clear();
+    for (const BodyId id : movingBodies_) findPlanePairs(id, planes, planePairs_);
+  } else if (!movedList_.empty() && !planes.empty()) {
+    freshPlanePairs_.clear();
+    for (const BodyId id : movedList_) findPlanePairs(id, planes, freshPlanePairs_);
+    std::sort(freshPlanePairs_.begin(), freshPlanePairs_.end());
+    mergedPlanePairs_.resize(planePairs_.size() + freshPlanePairs_.size());
+    auto out = mergedPlanePairs_.begin();
+    auto f = freshPlanePairs_.cbegin();
+    for (const BodyPlanePair& pr : planePairs_) {
+      if (moved_[pr.body.index()]) continue;  // a rebuilt box's pairs are all among the fresh ones
+      for (; f != freshPlanePairs_.cend() && *f < pr; ++f) *out++ = *f;
+      *out++ = pr;
+    }
+    out = std::copy(f, freshPlanePairs_.cend(), out);
+    mergedPlanePairs_.erase(out, mergedPlanePairs_.end());
+    std::swap(planePairs_, mergedPlanePairs_);
+  }
+
   for (const BodyId id : movedList_) moved_[id.index()] = 0;
   movedList_.clear();
   reinsertions_ = 0;
-
-  pairs.assign(pairs_.begin(), pairs_.end());
-  planePairs.clear();
-  for (const BodyId id : movingBodies_) {
-    const Aabb& box = moving_.fatAabb(proxies_[id.index()].node);
-    // the box reaches below a plane when its lowest corner along the normal does
-    for (std::size_t k = 0; k < planes.size(); ++k) {
-      const Plane& pl = planes[k];
-      const double lowest = pl.normal.dot(box.centre()) - pl.normal.cwiseAbs().dot(0.5 * (box.hi - box.lo));
-      if (lowest <= pl.offset) planePairs.push_back({id, PlaneId(k)});
-    }
-  }
 }
 
 }  // namespace volpar

@@ -289,16 +289,29 @@ void World::refreshContacts() {
 
 void World::detectCollisions() {
   auto t = Clock::now();
-  for (const BodyId id : rigidBodies_)
-    broadphase_.moveBody(id, bodyBoxes_[id.index()], bodies_.state[id.index()].linearVelocity * settings_.dt);
-  for (const BodyId id : deformableBodies_)
-    broadphase_.moveBody(id, bodyBoxes_[id.index()], bodies_.state[id.index()].linearVelocity * settings_.dt);
+  auto displacement = [&](BodyId id) -> Vec3 { return bodies_.state[id.index()].linearVelocity * settings_.dt; };
+  if (pool_ && pool_->worthSharing(rigidBodies_.size(), 512)) {
+    // which rigid bodies' boxes left their fat boxes, tested on the threads; the trees are then updated
+    // in the bodies' order on one, as without threads
+    leftFatBox_.resize(rigidBodies_.size());
+    pool_->run(rigidBodies_.size(), [&](int, std::size_t begin, std::size_t end) {
+      for (std::size_t k = begin; k < end; ++k) {
+        const BodyId id = rigidBodies_[k];
+        leftFatBox_[k] = broadphase_.keepsFatBox(id, bodyBoxes_[id.index()], displacement(id)) ? 0 : 1;
+      }
+    });
+    for (std::size_t k = 0; k < rigidBodies_.size(); ++k)
+      if (leftFatBox_[k]) broadphase_.moveBody(rigidBodies_[k], bodyBoxes_[rigidBodies_[k].index()], displacement(rigidBodies_[k]));
+  } else {
+    for (const BodyId id : rigidBodies_) broadphase_.moveBody(id, bodyBoxes_[id.index()], displacement(id));
+  }
+  for (const BodyId id : deformableBodies_) broadphase_.moveBody(id, bodyBoxes_[id.index()], displacement(id));
   stats_.proxyMoves = broadphase_.reinsertions();
-  broadphase_.findPairs(planes_, bodyPairs_, planePairs_, pool_.get());
+  broadphase_.findPairs(planes_, pool_.get());
   stats_.time.broadphase = secondsSince(t);
 
   t = Clock::now();
-  contactFinder_.find(particles_, bodies_, connectors_, bodyPairs_, planePairs_, planes_, bodyBoxes_, contacts_, pool_.get());
+  contactFinder_.find(particles_, bodies_, connectors_, broadphase_.pairs(), broadphase_.planePairs(), planes_, bodyBoxes_, contacts_, pool_.get());
   stats_.time.particleContacts = secondsSince(t);
 
   t = Clock::now();
@@ -313,8 +326,8 @@ void World::detectCollisions() {
   stats_.contactLinePatches = np.contactLines;
   stats_.lookAheadsDecided = np.lookAheadsDecided;
   stats_.patchesReused = np.reused;
-  stats_.bodyPairs = bodyPairs_.size();
-  stats_.planePairs = planePairs_.size();
+  stats_.bodyPairs = broadphase_.pairs().size();
+  stats_.planePairs = broadphase_.planePairs().size();
   stats_.contactGroups = contacts_.groups.size();
   // touching contacts and the deepest overlap: each worker's range, then the ranges combined (a count and
   // a maximum, the same in any order)

@@ -145,8 +145,8 @@ class World {
   /// Contacts of the current state (call refreshContacts() after adding bodies).
   [[nodiscard]] const ContactSet& contacts() const { return contacts_; }
   /// Candidate body pairs and body-plane pairs of the current state, sorted.
-  [[nodiscard]] const std::vector<BodyPair>& bodyPairs() const { return bodyPairs_; }
-  [[nodiscard]] const std::vector<BodyPlanePair>& planePairs() const { return planePairs_; }
+  [[nodiscard]] std::span<const BodyPair> bodyPairs() const { return broadphase_.pairs(); }
+  [[nodiscard]] std::span<const BodyPlanePair> planePairs() const { return broadphase_.planePairs(); }
   /// Tight world boxes of the bodies' particle spheres [B].
   [[nodiscard]] const std::vector<Aabb>& bodyBoxes() const { return bodyBoxes_; }
   [[nodiscard]] const Broadphase& broadphase() const { return broadphase_; }
@@ -262,8 +262,6 @@ class World {
   Broadphase broadphase_;
   ContactFinder contactFinder_;
   std::vector<Aabb> bodyBoxes_;
-  std::vector<BodyPair> bodyPairs_;
-  std::vector<BodyPlanePair> planePairs_;
   ContactSet contacts_;
   NarrowPhase narrowPhase_;
   PatchSet patches_;
@@ -339,6 +337,7 @@ class World {
 
   // cached index lists, rebuilt when bodies are added
   LargeVector<BodyId> rigidBodies_;
+  std::vector<std::uint8_t> leftFatBox_;  // scratch, by position in rigidBodies_: its box left its fat box
   LargeVector<BodyId> deformableBodies_;
   LargeVector<ParticleId> deformableParticles_;
   LargeVector<ConnectorId> deformableConnectors_;

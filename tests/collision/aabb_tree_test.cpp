@@ -137,15 +137,19 @@ TEST(Broadphase, PairsEqualBruteForceAndContainFclsPairs) {
     }
     std::vector<Plane> planes{Plane{Vec3::UnitZ(), -3.5, MaterialId{}}, Plane{Vec3(1, 1, 0).normalized(), -4.0, MaterialId{}}};
     for (int frame = 0; frame < 10; ++frame) {
+      // the planes' pairs are kept from frame to frame for the boxes that stay; a plane that moves, or
+      // one added, must be seen
+      if (frame == 4) planes[1].offset = -2.5;
+      if (frame == 7) planes.push_back(Plane{Vec3(0, -1, 1).normalized(), -2.0, MaterialId{}});
       for (std::size_t i = 0; i < n; ++i) {
         if (isStatic[i]) continue;
         const Vec3 d(step(rng), step(rng), step(rng));
         boxes[i] = {boxes[i].lo + d, boxes[i].hi + d};
         bp.moveBody(BodyId(i), boxes[i], d);
       }
-      std::vector<BodyPair> pairs;
-      std::vector<BodyPlanePair> planePairs;
-      bp.findPairs(planes, pairs, planePairs, pool);
+      bp.findPairs(planes, pool);
+      const std::vector<BodyPair> pairs(bp.pairs().begin(), bp.pairs().end());
+      std::vector<BodyPlanePair> planePairs(bp.planePairs().begin(), bp.planePairs().end());
       ASSERT_EQ(bp.movingTree().validate(), "");
       // brute force over the fat boxes: exactly the same list, each pair once, sorted
       std::vector<BodyPair> brute;

@@ -172,8 +172,6 @@ struct BoxCloud {
 
 struct VolparBroadphase {
   volpar::Broadphase bp;
-  std::vector<volpar::BodyPair> pairs;
-  std::vector<volpar::BodyPlanePair> planePairs;
   std::size_t moved = 0;  // reinsertions of the last update
 
   explicit VolparBroadphase(const BoxCloud& c) {
@@ -183,11 +181,11 @@ struct VolparBroadphase {
   void update(const BoxCloud& c) {
     for (std::size_t i = 0; i < c.position.size(); ++i) bp.moveBody(BodyId(i), c.tight(i), c.displacement[i]);
     moved = bp.reinsertions();
-    bp.findPairs({}, pairs, planePairs);
+    bp.findPairs({});
   }
   [[nodiscard]] std::vector<IdPair> tightPairs(const BoxCloud& c) const {
     std::vector<IdPair> out;
-    for (const auto& p : pairs)
+    for (const auto& p : bp.pairs())
       if (c.tight(p.a.index()).overlaps(c.tight(p.b.index()))) out.emplace_back(p.a.value, p.b.value);
     return out;
   }
@@ -242,7 +240,7 @@ void checkBroadphase(std::size_t n) {
     std::sort(t.begin(), t.end());
     std::sort(p.begin(), p.end());
     if (t != p) ++bad;
-    fat += v.pairs.size();
+    fat += v.bp.pairs().size();
     tight += t.size();
     fclPairs += p.size();
     moved += v.moved;
@@ -271,11 +269,11 @@ void BM_BroadphaseVolpar(benchmark::State& state) {
     cloud.move();  // untimed: the new positions
     const auto t0 = Clock::now();
     v.update(cloud);
-    benchmark::DoNotOptimize(v.pairs.data());
+    benchmark::DoNotOptimize(v.bp.pairs().data());
     state.SetIterationTime(std::chrono::duration<double>(Clock::now() - t0).count());
     moved += static_cast<double>(v.moved);
     if (first) {
-      state.counters["pairs"] = static_cast<double>(v.pairs.size());
+      state.counters["pairs"] = static_cast<double>(v.bp.pairs().size());
       state.counters["tight"] = static_cast<double>(v.tightPairs(cloud).size());
       first = false;
     }
