@@ -4,12 +4,35 @@
 
 namespace volpar {
 
+namespace {
+
+/// Drops from the sorted list `kept` the entries `drop` names and merges the sorted `fresh` in, each entry
+/// once (an entry both kept and fresh meets itself in a row), in one pass through `scratch`.
+template <class T, class Drop>
+void mergeFresh(std::vector<T>& kept, const std::vector<T>& fresh, const Drop& drop, std::vector<T>& scratch) {
+  scratch.resize(kept.size() + fresh.size());
+  auto out = scratch.begin();
+  const auto emit = [&](const T& x) {
+    if (out == scratch.begin() || out[-1] != x) *out++ = x;
+  };
+  auto f = fresh.cbegin();
+  for (const T& x : kept) {
+    for (; f != fresh.cend() && *f < x; ++f) emit(*f);
+    if (!drop(x)) emit(x);
+  }
+  for (; f != fresh.cend(); ++f) emit(*f);
+  scratch.erase(out, scratch.end());
+  std::swap(kept, scratch);
+}
+
+}  // namespace
+
 void Broadphase::addBody(BodyId id, const Aabb& tight, bool isStatic) {
   if (proxies_.size() <= id.index()) proxies_.resize(id.index() + 1);
   Proxy& p = proxies_[id.index()];
   p.isStatic = isStatic;
   p.node = (isStatic ? static_ : moving_).createProxy(tight, isStatic ? 0.0 : margin_, id.value);
-  keepFatBox(id);
+  copyFatBox(id);
   if (!isStatic) movingBodies_.insert(std::lower_bound(movingBodies_.begin(), movingBodies_.end(), id), id);
   if (moved_.size() <= id.index()) moved_.resize(id.index() + 1, 0);
   pairsDirty_ = true;
@@ -24,7 +47,7 @@ void Broadphase::removeBody(BodyId id) {
   pairsDirty_ = true;
 }
 
-void Broadphase::keepFatBox(BodyId id) {
+void Broadphase::copyFatBox(BodyId id) {
   const Proxy& p = proxies_[id.index()];
   if (fat_.size() <= id.index()) fat_.resize(id.index() + 1);
   fat_[id.index()] = (p.isStatic ? static_ : moving_).fatAabb(p.node);
@@ -37,7 +60,7 @@ void Broadphase::moveBody(BodyId id, const Aabb& tight, const Vec3& displacement
   if (keepsFatBox(id, tight, displacement)) return;
   const bool moved = moving_.moveProxy(p.node, tight, margin_, displacement);
   VOLPAR_ASSERT(moved, "the tree's fat box is the one kept apart");
-  keepFatBox(id);
+  copyFatBox(id);
   ++reinsertions_;
   if (!moved_[id.index()]) {
     moved_[id.index()] = 1;
@@ -109,25 +132,11 @@ void Broadphase::findPairs(std::span<const Plane> planes, ThreadPool* pool) {
     }
     std::sort(fresh_.begin(), fresh_.end());
     // ... and, in one pass over the kept list, drop the pairs of rebuilt boxes that no longer overlap and
-    // merge the fresh pairs in, each pair once (a fresh pair already kept is written once: equal pairs
-    // meet in a row)
+    // merge the fresh pairs in
     auto stale = [&](const BodyPair& pr) {
       return (moved_[pr.a.index()] || moved_[pr.b.index()]) && !fatBox(pr.a).overlaps(fatBox(pr.b));
     };
-    merged_.resize(pairs_.size() + fresh_.size());
-    auto out = merged_.begin();
-    auto emit = [&](const BodyPair& pr) {
-      if (out == merged_.begin() || out[-1] != pr) *out++ = pr;
-    };
-    auto f = fresh_.cbegin();
-    const auto fEnd = fresh_.cend();
-    for (const BodyPair& pr : pairs_) {
-      for (; f != fEnd && *f < pr; ++f) emit(*f);
-      if (!stale(pr)) emit(pr);
-    }
-    for (; f != fEnd; ++f) emit(*f);
-    merged_.erase(out, merged_.end());
-    std::swap(pairs_, merged_);
+    mergeFresh(pairs_, fresh_, stale, merged_);
   }
   // the plane pairs: every body's afresh when the bodies or the planes changed, otherwise only the
   // rebuilt boxes' (the others' boxes and the planes are as they were)
@@ -142,17 +151,9 @@ void Broadphase::findPairs(std::span<const Plane> planes, ThreadPool* pool) {
     freshPlanePairs_.clear();
     for (const BodyId id : movedList_) findPlanePairs(id, planes, freshPlanePairs_);
     std::sort(freshPlanePairs_.begin(), freshPlanePairs_.end());
-    mergedPlanePairs_.resize(planePairs_.size() + freshPlanePairs_.size());
-    auto out = mergedPlanePairs_.begin();
-    auto f = freshPlanePairs_.cbegin();
-    for (const BodyPlanePair& pr : planePairs_) {
-      if (moved_[pr.body.index()]) continue;  // a rebuilt box's pairs are all among the fresh ones
-      for (; f != freshPlanePairs_.cend() && *f < pr; ++f) *out++ = *f;
-      *out++ = pr;
-    }
-    out = std::copy(f, freshPlanePairs_.cend(), out);
-    mergedPlanePairs_.erase(out, mergedPlanePairs_.end());
-    std::swap(planePairs_, mergedPlanePairs_);
+    // (a rebuilt box's plane pairs are all among the fresh ones)
+    mergeFresh(planePairs_, freshPlanePairs_, [&](const BodyPlanePair& pr) { return moved_[pr.body.index()] != 0; },
+               mergedPlanePairs_);
   }
 
   for (const BodyId id : movedList_) moved_[id.index()] = 0;

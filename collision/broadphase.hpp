@@ -82,7 +82,7 @@ class Broadphase {
   /// Appends the (body, plane) pairs whose plane the body's fat box reaches.
   void findPlanePairs(BodyId id, std::span<const Plane> planes, std::vector<BodyPlanePair>& out) const;
   /// Copies a proxy's fat box from its tree into fat_.
-  void keepFatBox(BodyId id);
+  void copyFatBox(BodyId id);
   /// Appends the pairs of movedList_[begin, end) (a pair of two moved bodies from the smaller id only).
   void queryMoved(std::size_t begin, std::size_t end, std::vector<BodyPair>& out) const;
 

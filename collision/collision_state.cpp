@@ -337,7 +337,7 @@ void Broadphase::restoreBody(BodyId id, const Aabb& fat, bool isStatic) {
   Proxy& p = proxies_[id.index()];
   p.isStatic = isStatic;
   p.node = (isStatic ? static_ : moving_).createProxy(fat, 0.0, id.value);
-  keepFatBox(id);
+  copyFatBox(id);
   if (!isStatic) movingBodies_.insert(std::lower_bound(movingBodies_.begin(), movingBodies_.end(), id), id);
   if (moved_.size() <= id.index()) moved_.resize(id.index() + 1, 0);
   pairsDirty_ = true;
