@@ -290,9 +290,10 @@ void World::refreshContacts() {
 void World::detectCollisions() {
   auto t = Clock::now();
   auto displacement = [&](BodyId id) -> Vec3 { return bodies_.state[id.index()].linearVelocity * settings_.dt; };
-  if (pool_ && pool_->worthSharing(rigidBodies_.size(), 512)) {
-    // which rigid bodies' boxes left their fat boxes, tested on the threads; the trees are then updated
-    // in the bodies' order on one, as without threads
+  if (pool_ && pool_->worthSharing(rigidBodies_.size(), 128)) {
+    // which rigid bodies' boxes left their fat boxes, tested on the threads (from 128 bodies a worker: a
+    // test reads one compact box); the trees are then updated in the bodies' order on one, as without
+    // threads
     leftFatBox_.resize(rigidBodies_.size());
     pool_->run(rigidBodies_.size(), [&](int, std::size_t begin, std::size_t end) {
       for (std::size_t k = begin; k < end; ++k) {
