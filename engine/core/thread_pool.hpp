@@ -77,8 +77,8 @@ class ThreadPool {
 
   [[nodiscard]] int workers() const { return workers_; }
   /// Pause instructions a waiting thread spins through before it sleeps (workers) or yields (callers,
-  /// barriers): about a millisecond, longer than the gaps between the runs of one step, short beside a
-  /// frame.
+  /// barriers): half a millisecond to a millisecond, by processor (a pause is longer on some than on
+  /// others), longer than the gaps between the runs of one step, short beside a frame.
   static constexpr int kSpins = 20000;
   /// Items per worker to cut uneven work into for runItems: enough for the uneven ones to balance out.
   static constexpr std::size_t kChunksPerWorker = 8;
