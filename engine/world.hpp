@@ -285,6 +285,8 @@ class World {
   LargeVector<PatchPoints> patchPoints_;            // per patch
   LargeVector<std::uint32_t> pointFirst_;           // per patch: its first contact point (and the end)
   LargeVector<std::uint32_t> keptContacts_;         // as PatchSet::contacts: each patch's contacts that become points
+  std::vector<std::size_t> selectedFrom_;           // with processes: each one's first patch selected (and the end)
+  std::vector<std::size_t> shareOffset_, shareCount_;  // with processes: the byte ranges of an exchange
   /// per worker, per particle: whether it touches in the patch being made into points (0 between patches)
   LargeVector<std::vector<std::uint8_t>> touchingParticle_;
   LargeVector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles

@@ -204,8 +204,49 @@ void World::buildContactPoints() {
       patchPoints_[j] = {patch.a, patch.b, count, mode, sideA.kind, sideB.kind};
     }
   };
-  if (pool_ && pool_->worthSharing(np, 512)) pool_->runChunks(np, select);
-  else select(0, 0, np);
+  // With processes, each selects a contiguous run of the patches, of about equal numbers of contacts, and
+  // every process then holds every patch's selection (one exchange of the modes, one of the kept contacts:
+  // each patch's contacts lie in patch order, so a run's kept contacts are one range). Which process
+  // selects a patch changes nothing in its selection
+  const bool divided = processes_ && processes_->size() > 1;
+  std::size_t mineBegin = 0, mineEnd = np;
+  if (divided && np > 0) {
+    const int ranks = processes_->size();
+    const std::size_t contacts = ps.contacts.size();
+    // process r's first patch: the first whose contacts begin at or past r / R of them all
+    const auto firstOf = [&](int r) -> std::size_t {
+      if (r >= ranks) return np;
+      const std::size_t at = firstShare(r, ranks, contacts);
+      return static_cast<std::size_t>(
+          std::partition_point(ps.patches.begin(), ps.patches.end(), [&](const ContactPatch& p) { return p.first < at; }) -
+          ps.patches.begin());
+    };
+    selectedFrom_.resize(static_cast<std::size_t>(ranks) + 1);
+    for (int r = 0; r <= ranks; ++r) selectedFrom_[static_cast<std::size_t>(r)] = r == 0 ? 0 : firstOf(r);
+    mineBegin = selectedFrom_[static_cast<std::size_t>(processes_->rank())];
+    mineEnd = selectedFrom_[static_cast<std::size_t>(processes_->rank()) + 1];
+  }
+  const std::size_t mine = mineEnd - mineBegin;
+  if (pool_ && pool_->worthSharing(mine, 512))
+    pool_->runChunks(mine, [&](int worker, std::size_t begin, std::size_t end) { select(worker, mineBegin + begin, mineBegin + end); });
+  else select(0, mineBegin, mineEnd);
+  if (divided && np > 0) {
+    const auto ranks = static_cast<std::size_t>(processes_->size());
+    shareOffset_.resize(ranks);
+    shareCount_.resize(ranks);
+    const auto contactOf = [&](std::size_t j) -> std::size_t { return j < np ? ps.patches[j].first : ps.contacts.size(); };
+    for (std::size_t r = 0; r < ranks; ++r) {
+      shareOffset_[r] = selectedFrom_[r] * sizeof(PatchPoints);
+      shareCount_[r] = (selectedFrom_[r + 1] - selectedFrom_[r]) * sizeof(PatchPoints);
+    }
+    processes_->share(std::as_writable_bytes(std::span<PatchPoints>(patchPoints_.data(), np)), shareOffset_, shareCount_);
+    for (std::size_t r = 0; r < ranks; ++r) {
+      shareOffset_[r] = contactOf(selectedFrom_[r]) * sizeof(std::uint32_t);
+      shareCount_[r] = (contactOf(selectedFrom_[r + 1]) - contactOf(selectedFrom_[r])) * sizeof(std::uint32_t);
+    }
+    processes_->share(std::as_writable_bytes(std::span<std::uint32_t>(keptContacts_.data(), keptContacts_.size())), shareOffset_,
+                      shareCount_);
+  }
   // (2) the points' places, and the solver bodies named in the order their first points name them (the
   // points of a patch of two rigid bodies all name the same two); with processes, each point's solver
   // bodies (a rigid body's points share its slot; a deformable body's particles have a slot each). One
@@ -218,7 +259,6 @@ void World::buildContactPoints() {
       default: return ContactPointInput::kFixed;
     }
   };
-  const bool divided = processes_ && processes_->size() > 1;
   pointBodies_.clear();
   pointFirst_[0] = 0;
   for (std::size_t j = 0; j < np; ++j) {
