@@ -538,18 +538,25 @@ void World::resistRolling() {
 
 void World::integratePositions() {
   const double dt = settings_.dt;
-  // rigid bodies are independent: shared among the workers
-  const auto rigid = [&](int, std::size_t begin, std::size_t end) {
-    for (std::size_t i = begin; i < end; ++i) {
-      const BodyId id = rigidBodies_[i];
-      const std::uint32_t k = id.index() < bodySolverIndex_.size() ? bodySolverIndex_[id.index()] : ContactPointInput::kFixed;
-      if (k != ContactPointInput::kFixed) integrateRigidPose(bodies_.state[id.index()], dt, solverBodies_[k].pv, solverBodies_[k].pw);
-      else integrateRigidPose(bodies_.state[id.index()], dt);
-      updateRigidParticles(id);
-    }
+  const auto pose = [&](BodyId id) {
+    const std::uint32_t k = id.index() < bodySolverIndex_.size() ? bodySolverIndex_[id.index()] : ContactPointInput::kFixed;
+    if (k != ContactPointInput::kFixed) integrateRigidPose(bodies_.state[id.index()], dt, solverBodies_[k].pv, solverBodies_[k].pw);
+    else integrateRigidPose(bodies_.state[id.index()], dt);
   };
-  if (pool_ && pool_->worthSharing(rigidBodies_.size(), 256)) pool_->run(rigidBodies_.size(), rigid);
-  else rigid(0, 0, rigidBodies_.size());
+  // rigid bodies are independent: shared among the workers
+  const std::size_t nRigid = rigidBodies_.size();
+  if (processes_ && processes_->size() > 1 && nRigid > 0) {
+    shareRigidPoses(pose);
+  } else {
+    const auto rigid = [&](int, std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) {
+        pose(rigidBodies_[i]);
+        updateRigidParticles(rigidBodies_[i]);
+      }
+    };
+    if (pool_ && pool_->worthSharing(nRigid, 256)) pool_->run(nRigid, rigid);
+    else rigid(0, 0, nRigid);
+  }
   if (deformableBodies_.empty()) return;  // (what follows steps deformable bodies and their contacts)
   DeformableStepInput in;
   in.particles = deformableParticles_;
@@ -624,6 +631,58 @@ void World::integratePositions() {
   touchedRigid_.erase(std::unique(touchedRigid_.begin(), touchedRigid_.end()), touchedRigid_.end());
   for (const BodyId b : touchedRigid_) updateRigidParticles(b);
   updateDeformableBodyStates();
+}
+
+template <class Pose>
+void World::shareRigidPoses(const Pose& pose) {
+  // each process integrates the poses of a contiguous run of the rigid bodies, and one exchange hands every
+  // process every body's centre, orientation and angular velocity (its world inverse inertia follows from
+  // its orientation, by the same function on every process); every process then places every body's
+  // particles, which every stage reads
+  const std::size_t n = rigidBodies_.size();
+  const int ranks = processes_->size();
+  const std::size_t begin = firstShare(processes_->rank(), ranks, n), end = firstShare(processes_->rank() + 1, ranks, n);
+  sharedPoses_.resize(n);
+  const auto integrate = [&](int, std::size_t from, std::size_t to) {
+    for (std::size_t i = begin + from; i < begin + to; ++i) {
+      pose(rigidBodies_[i]);
+      const BodyState& s = bodies_.state[rigidBodies_[i].index()];
+      std::array<double, 10>& out = sharedPoses_[i];
+      for (int c = 0; c < 3; ++c) {
+        out[static_cast<std::size_t>(c)] = s.position[c];
+        out[static_cast<std::size_t>(7 + c)] = s.angularVelocity[c];
+      }
+      for (int c = 0; c < 4; ++c) out[static_cast<std::size_t>(3 + c)] = s.orientation.coeffs()[c];
+    }
+  };
+  if (pool_ && pool_->worthSharing(end - begin, 256)) pool_->run(end - begin, integrate);
+  else integrate(0, 0, end - begin);
+  shareOffset_.resize(static_cast<std::size_t>(ranks));
+  shareCount_.resize(static_cast<std::size_t>(ranks));
+  constexpr std::size_t kBytes = sizeof(std::array<double, 10>);
+  for (int r = 0; r < ranks; ++r) {
+    shareOffset_[static_cast<std::size_t>(r)] = firstShare(r, ranks, n) * kBytes;
+    shareCount_[static_cast<std::size_t>(r)] = (firstShare(r + 1, ranks, n) - firstShare(r, ranks, n)) * kBytes;
+  }
+  processes_->share(std::as_writable_bytes(std::span<std::array<double, 10>>(sharedPoses_.data(), n)), shareOffset_, shareCount_);
+  const auto place = [&](int, std::size_t from, std::size_t to) {
+    for (std::size_t i = from; i < to; ++i) {
+      const BodyId id = rigidBodies_[i];
+      BodyState& s = bodies_.state[id.index()];
+      if ((i < begin || i >= end) && s.invMass != 0.0) {  // (a body of no mass never moves: integrateRigidPose())
+        const std::array<double, 10>& in = sharedPoses_[i];
+        for (int c = 0; c < 3; ++c) {
+          s.position[c] = in[static_cast<std::size_t>(c)];
+          s.angularVelocity[c] = in[static_cast<std::size_t>(7 + c)];
+        }
+        for (int c = 0; c < 4; ++c) s.orientation.coeffs()[c] = in[static_cast<std::size_t>(3 + c)];
+        updateWorldInertia(s);
+      }
+      updateRigidParticles(id);
+    }
+  };
+  if (pool_ && pool_->worthSharing(n, 256)) pool_->run(n, place);
+  else place(0, 0, n);
 }
 
 void World::updateRigidParticles(BodyId id) {

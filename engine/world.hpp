@@ -242,6 +242,8 @@ class World {
   /// last estimated.
   void seedDeformedNormals();
   void detectCollisions();
+  template <class Pose>
+  void shareRigidPoses(const Pose& pose);
   void updateRigidParticles(BodyId id);
   [[nodiscard]] bool finiteState() const;
   void updateDeformableBodyStates();
@@ -287,6 +289,7 @@ class World {
   LargeVector<std::uint32_t> keptContacts_;         // as PatchSet::contacts: each patch's contacts that become points
   std::vector<std::size_t> selectedFrom_;           // with processes: each one's first patch selected (and the end)
   std::vector<std::size_t> shareOffset_, shareCount_;  // with processes: the byte ranges of an exchange
+  LargeVector<std::array<double, 10>> sharedPoses_;  // with processes: each rigid body's pose after the step
   /// per worker, per particle: whether it touches in the patch being made into points (0 between patches)
   LargeVector<std::vector<std::uint8_t>> touchingParticle_;
   LargeVector<std::pair<ParticleId, ParticleId>> pointParticles_;  // per contact point: its particles
