@@ -643,39 +643,33 @@ void World::shareRigidPoses(const Pose& pose) {
   const int ranks = processes_->size();
   const std::size_t begin = firstShare(processes_->rank(), ranks, n), end = firstShare(processes_->rank() + 1, ranks, n);
   sharedPoses_.resize(n);
+  // (a pose: the centre, the orientation's coefficients and the angular velocity, 10 doubles)
+  using Centre = Eigen::Map<Vec3>;
+  using Turn = Eigen::Map<Eigen::Vector4d>;
   const auto integrate = [&](int, std::size_t from, std::size_t to) {
     for (std::size_t i = begin + from; i < begin + to; ++i) {
       pose(rigidBodies_[i]);
       const BodyState& s = bodies_.state[rigidBodies_[i].index()];
-      std::array<double, 10>& out = sharedPoses_[i];
-      for (int c = 0; c < 3; ++c) {
-        out[static_cast<std::size_t>(c)] = s.position[c];
-        out[static_cast<std::size_t>(7 + c)] = s.angularVelocity[c];
-      }
-      for (int c = 0; c < 4; ++c) out[static_cast<std::size_t>(3 + c)] = s.orientation.coeffs()[c];
+      double* out = sharedPoses_[i].data();
+      Centre{out} = s.position;
+      Turn{out + 3} = s.orientation.coeffs();
+      Centre{out + 7} = s.angularVelocity;
     }
   };
   if (pool_ && pool_->worthSharing(end - begin, 256)) pool_->run(end - begin, integrate);
   else integrate(0, 0, end - begin);
-  shareOffset_.resize(static_cast<std::size_t>(ranks));
-  shareCount_.resize(static_cast<std::size_t>(ranks));
-  constexpr std::size_t kBytes = sizeof(std::array<double, 10>);
-  for (int r = 0; r < ranks; ++r) {
-    shareOffset_[static_cast<std::size_t>(r)] = firstShare(r, ranks, n) * kBytes;
-    shareCount_[static_cast<std::size_t>(r)] = (firstShare(r + 1, ranks, n) - firstShare(r, ranks, n)) * kBytes;
-  }
-  processes_->share(std::as_writable_bytes(std::span<std::array<double, 10>>(sharedPoses_.data(), n)), shareOffset_, shareCount_);
+  shareRuns(*processes_, std::as_writable_bytes(std::span<std::array<double, 10>>(sharedPoses_.data(), n)),
+            sizeof(std::array<double, 10>), [&](std::size_t r) { return firstShare(static_cast<int>(r), ranks, n); },
+            shareOffset_, shareCount_);
   const auto place = [&](int, std::size_t from, std::size_t to) {
     for (std::size_t i = from; i < to; ++i) {
       const BodyId id = rigidBodies_[i];
       BodyState& s = bodies_.state[id.index()];
       if ((i < begin || i >= end) && s.invMass != 0.0) {  // (a body of no mass never moves: integrateRigidPose())
-        const std::array<double, 10>& in = sharedPoses_[i];
-        for (int c = 0; c < 3; ++c) {
-          s.position[c] = in[static_cast<std::size_t>(c)];
-          s.angularVelocity[c] = in[static_cast<std::size_t>(7 + c)];
-        }
-        for (int c = 0; c < 4; ++c) s.orientation.coeffs()[c] = in[static_cast<std::size_t>(3 + c)];
+        double* in = sharedPoses_[i].data();
+        s.position = Centre{in};
+        s.orientation.coeffs() = Turn{in + 3};
+        s.angularVelocity = Centre{in + 7};
         updateWorldInertia(s);
       }
       updateRigidParticles(id);

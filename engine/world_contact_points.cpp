@@ -211,18 +211,17 @@ void World::buildContactPoints() {
   const bool divided = processes_ && processes_->size() > 1;
   std::size_t mineBegin = 0, mineEnd = np;
   if (divided && np > 0) {
-    const int ranks = processes_->size();
-    const std::size_t contacts = ps.contacts.size();
     // process r's first patch: the first whose contacts begin at or past r / R of them all
-    const auto firstOf = [&](int r) -> std::size_t {
-      if (r >= ranks) return np;
-      const std::size_t at = firstShare(r, ranks, contacts);
-      return static_cast<std::size_t>(
-          std::partition_point(ps.patches.begin(), ps.patches.end(), [&](const ContactPatch& p) { return p.first < at; }) -
-          ps.patches.begin());
-    };
+    const int ranks = processes_->size();
     selectedFrom_.resize(static_cast<std::size_t>(ranks) + 1);
-    for (int r = 0; r <= ranks; ++r) selectedFrom_[static_cast<std::size_t>(r)] = r == 0 ? 0 : firstOf(r);
+    for (int r = 0; r <= ranks; ++r) {
+      const std::size_t at = firstShare(r, ranks, ps.contacts.size());
+      selectedFrom_[static_cast<std::size_t>(r)] =
+          r == ranks ? np
+                     : static_cast<std::size_t>(std::partition_point(ps.patches.begin(), ps.patches.end(),
+                                                                     [&](const ContactPatch& p) { return p.first < at; }) -
+                                                ps.patches.begin());
+    }
     mineBegin = selectedFrom_[static_cast<std::size_t>(processes_->rank())];
     mineEnd = selectedFrom_[static_cast<std::size_t>(processes_->rank()) + 1];
   }
@@ -231,21 +230,11 @@ void World::buildContactPoints() {
     pool_->runChunks(mine, [&](int worker, std::size_t begin, std::size_t end) { select(worker, mineBegin + begin, mineBegin + end); });
   else select(0, mineBegin, mineEnd);
   if (divided && np > 0) {
-    const auto ranks = static_cast<std::size_t>(processes_->size());
-    shareOffset_.resize(ranks);
-    shareCount_.resize(ranks);
     const auto contactOf = [&](std::size_t j) -> std::size_t { return j < np ? ps.patches[j].first : ps.contacts.size(); };
-    for (std::size_t r = 0; r < ranks; ++r) {
-      shareOffset_[r] = selectedFrom_[r] * sizeof(PatchPoints);
-      shareCount_[r] = (selectedFrom_[r + 1] - selectedFrom_[r]) * sizeof(PatchPoints);
-    }
-    processes_->share(std::as_writable_bytes(std::span<PatchPoints>(patchPoints_.data(), np)), shareOffset_, shareCount_);
-    for (std::size_t r = 0; r < ranks; ++r) {
-      shareOffset_[r] = contactOf(selectedFrom_[r]) * sizeof(std::uint32_t);
-      shareCount_[r] = (contactOf(selectedFrom_[r + 1]) - contactOf(selectedFrom_[r])) * sizeof(std::uint32_t);
-    }
-    processes_->share(std::as_writable_bytes(std::span<std::uint32_t>(keptContacts_.data(), keptContacts_.size())), shareOffset_,
-                      shareCount_);
+    shareRuns(*processes_, std::as_writable_bytes(std::span<PatchPoints>(patchPoints_.data(), np)), sizeof(PatchPoints),
+              [&](std::size_t r) { return selectedFrom_[r]; }, shareOffset_, shareCount_);
+    shareRuns(*processes_, std::as_writable_bytes(std::span<std::uint32_t>(keptContacts_.data(), keptContacts_.size())),
+              sizeof(std::uint32_t), [&](std::size_t r) { return contactOf(selectedFrom_[r]); }, shareOffset_, shareCount_);
   }
   // (2) the points' places, and the solver bodies named in the order their first points name them (the
   // points of a patch of two rigid bodies all name the same two); with processes, each point's solver

@@ -54,6 +54,20 @@ void readBytes(const std::byte*& from, T& value) {
   from += sizeof(T);
 }
 
+/// share() of runs of equal elements: process r's part of `data` is elements [start(r), start(r + 1)) of `bytes`
+/// bytes each, for r from 0 to the group's size (`offset` and `count`: the caller's scratch, kept between calls)
+template <class Start>
+void shareRuns(ProcessGroup& group, std::span<std::byte> data, std::size_t bytes, const Start& start,
+               std::vector<std::size_t>& offset, std::vector<std::size_t>& count) {
+  const auto n = static_cast<std::size_t>(group.size());
+  offset.resize(n);
+  count.resize(n);
+  for (std::size_t r = 0; r < n; ++r) {
+    offset[r] = start(r) * bytes;
+    count[r] = (start(r + 1) - start(r)) * bytes;
+  }
+  group.share(data, offset, count);
+}
 /// The first of n items that process (or worker) `rank` of `size` takes: each takes a contiguous run, up to
 /// the next one's first.
 [[nodiscard]] inline std::size_t firstShare(int rank, int size, std::size_t n) {
