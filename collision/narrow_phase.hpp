@@ -152,7 +152,7 @@ class NarrowPhase {
   PacedSplit groupSplit_;  // the groups' ranges of the workers, and their pieces (the chunks)
   // with processes: this process's chunks as bytes, every process's, and every process's chunks again
   ProcessGroup* processes_ = nullptr;
-  std::vector<std::byte> mine_, all_;
+  ExchangeBytes mine_, all_;
   LargeVector<std::size_t> shareOffset_, shareCount_;
   LargeVector<Output> gathered_;
   /// With processes: per group of this process's run, the cache entry whose patches it takes over (kNoMatch:
@@ -171,7 +171,7 @@ class NarrowPhase {
   /// Hands over the entries of groups taken over that passed to another process; `words`: of the bits.
   void moveEntries(const ContactSet& contacts, std::size_t words);
   /// One cache entry as bytes (`tag`, the group, its pairs, order and patches), and back (appended to `to`).
-  static void appendEntry(std::vector<std::byte>& bytes, std::uint32_t tag, const Cache& from, std::size_t entry);
+  static void appendEntry(ExchangeBytes& bytes, std::uint32_t tag, const Cache& from, std::size_t entry);
   static std::uint32_t readEntry(const std::byte*& at, Cache& to);
   /// Appends entry `entry` of `from` to `to`.
   static void copyEntry(const Cache& from, std::size_t entry, Cache& to);

@@ -22,7 +22,7 @@ void eachTravelling(O& o, const F& f) {
 }
 
 template <class T>
-void appendRange(std::vector<std::byte>& to, const T* from, std::size_t n) {
+void appendRange(ExchangeBytes& to, const T* from, std::size_t n) {
   const auto* data = reinterpret_cast<const std::byte*>(from);
   to.insert(to.end(), data, data + n * sizeof(T));
 }
@@ -54,7 +54,7 @@ std::size_t NarrowPhase::gatherChunks(std::size_t count) {
   return listed;
 }
 
-void NarrowPhase::appendEntry(std::vector<std::byte>& bytes, std::uint32_t tag, const Cache& from, std::size_t entry) {
+void NarrowPhase::appendEntry(ExchangeBytes& bytes, std::uint32_t tag, const Cache& from, std::size_t entry) {
   const CachedGroup& c = from.groups[entry];
   appendBytes(bytes, tag);
   appendBytes(bytes, c);
@@ -173,7 +173,7 @@ void NarrowPhase::moveEntries(const ContactSet& contacts, std::size_t words) {
 
 NarrowPhase::Cache NarrowPhase::wholeCache() const {
   if (!processes_ || processes_->size() == 1) return cache_;
-  std::vector<std::byte> mine, all;
+  ExchangeBytes mine, all;
   for (std::size_t k = 0; k < cache_.groups.size(); ++k) appendEntry(mine, 0, cache_, k);
   processes_->gather(mine, all);
   Cache every;

@@ -244,7 +244,7 @@ class ContactFinder {
   ProcessGroup* processes_ = nullptr;
   ContactSet mine_;
   LargeVector<std::pair<ParticleId, ParticleId>> ids_;
-  std::vector<std::byte> bytes_, gathered_;
+  ExchangeBytes bytes_, gathered_;
   struct ShareHeader {
     std::uint64_t bodyGroups = 0, planeGroups = 0;  // the groups of body pairs, then of planes, lead
     double seconds = 0.0;                           // its search's

@@ -1,9 +1,15 @@
 #include "volpar/distributed/mpi_process_group.hpp"
 
+#include <chrono>
 #include <limits>
 #include <stdexcept>
 
 namespace volpar {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+}  // namespace
 
 MpiProcessGroup::MpiProcessGroup(MPI_Comm comm) : comm_(comm) {
   MPI_Comm_rank(comm_, &rank_);
@@ -26,12 +32,15 @@ void MpiProcessGroup::share(std::span<std::byte> data, std::span<const std::size
     if (static_cast<int>(r) != rank_) received_ += count[r];
   }
   ++calls_;
+  const auto t = Clock::now();
   MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, data.data(), counts_.data(), displacements_.data(), MPI_BYTE, comm_);
+  seconds_ += secondsSince(t);
 }
 
-void MpiProcessGroup::gather(std::span<const std::byte> mine, std::vector<std::byte>& all) {
+void MpiProcessGroup::gather(std::span<const std::byte> mine, ExchangeBytes& all) {
   // every process's size first, then the bytes
   unsigned long long size = mine.size();
+  const auto t = Clock::now();
   MPI_Allgather(&size, 1, MPI_UNSIGNED_LONG_LONG, sizes_.data(), 1, MPI_UNSIGNED_LONG_LONG, comm_);
   constexpr auto kMax = static_cast<unsigned long long>(std::numeric_limits<int>::max());
   unsigned long long total = 0;
@@ -47,6 +56,7 @@ void MpiProcessGroup::gather(std::span<const std::byte> mine, std::vector<std::b
   all.resize(static_cast<std::size_t>(total));
   MPI_Allgatherv(mine.data(), counts_[static_cast<std::size_t>(rank_)], MPI_BYTE, all.data(), counts_.data(),
                  displacements_.data(), MPI_BYTE, comm_);
+  seconds_ += secondsSince(t);
 }
 
 }  // namespace volpar

@@ -318,7 +318,7 @@ class ContactSolver {
   bool divideSetUp_ = false;  // whether this solve's processes each prepare their own nodes alone
   bool planned_ = false;      // plan() made the next solve's plan
   LargeVector<std::uint8_t> pointsRead_;
-  std::vector<std::byte> lanesMine_, lanesAll_;
+  ExchangeBytes lanesMine_, lanesAll_;
   LargeVector<std::uint32_t> lanesScratch_;
   LargeVector<std::uint64_t> keysScratch_;
   /// Hands every process the values the others hold at their entries of `h`, of each array in turn.
@@ -335,7 +335,7 @@ class ContactSolver {
   LargeVector<std::uint8_t> listed_;       // (per slot: the level + 1 whose list holds it)
   LargeVector<std::size_t> interiorNext_;  // (per process: its next entry of interior_)
   LargeVector<std::uint8_t> movedBy_;      // per process: whether a node of its moved in a position sweep
-  std::vector<std::byte> handoverBytes_;
+  ExchangeBytes handoverBytes_;
   LargeVector<std::uint64_t> cacheKeys_;
   LargeVector<Cached> cache_;
   LargeVector<Cached> nextCache_;

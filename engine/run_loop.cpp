@@ -126,6 +126,7 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
     const StepStatus status = world.step();
     summary.stepSeconds += world.stats().time.total;
     summary.stageTimes += world.stats().time;
+    summary.exchangeTimes += world.stats().exchangeTime;
     const StepStats& st = world.stats();
     summary.maxPenetration = std::max(summary.maxPenetration, st.maxPenetration);
     summary.patches += st.patches;

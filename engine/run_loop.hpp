@@ -76,6 +76,7 @@ struct RunSummary {
   EnergyReport energyStart;
   EnergyReport energyEnd;
   StageTimes stageTimes;         ///< summed over the run [s]
+  StageTimes exchangeTimes;      ///< of them, in exchanges among processes (StepStats::exchangeTime) [s]
   double maxPenetration = 0.0;   ///< deepest particle overlap seen after any step [m]
   // narrow-phase statistics summed over the steps
   std::size_t patches = 0;

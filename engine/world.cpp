@@ -241,30 +241,30 @@ void World::setThreads(int threads, bool shareAll) {
 StepStatus World::step() {
   if (contactsStale_) refreshContacts();
   const auto t0 = Clock::now();
+  const double x0 = exchangeSeconds();
   stats_ = StepStats{};
   stats_.step = stepIndex_ + 1;
-
-  auto t = Clock::now();
-  integrateVelocities();
-  stats_.time.integrateVelocities = secondsSince(t);
-
-  t = Clock::now();
-  solveContacts();
-  stats_.time.solver = secondsSince(t);
-
-  t = Clock::now();
-  integratePositions();
-  stats_.time.integratePositions = secondsSince(t);
-
-  t = Clock::now();
-  applyBreakage();
-  stats_.time.breakage = secondsSince(t);
-
+  timeStage(&StageTimes::integrateVelocities, [&] { integrateVelocities(); });
+  timeStage(&StageTimes::solver, [&] { solveContacts(); });
+  timeStage(&StageTimes::integratePositions, [&] { integratePositions(); });
+  timeStage(&StageTimes::breakage, [&] { applyBreakage(); });
   ++stepIndex_;
   const bool finiteNow = finiteState();
   if (finiteNow) detectCollisions();
   stats_.time.total = secondsSince(t0);
+  stats_.exchangeTime.total = exchangeSeconds() - x0;
   return finiteNow ? StepStatus::Ok : StepStatus::NonFinite;
+}
+
+double World::exchangeSeconds() const { return processes_ ? processes_->exchangeSeconds() : 0.0; }
+
+template <class Stage>
+void World::timeStage(double StageTimes::*stage, const Stage& run) {
+  const auto t = Clock::now();
+  const double x = exchangeSeconds();
+  run();
+  stats_.time.*stage = secondsSince(t);
+  stats_.exchangeTime.*stage = exchangeSeconds() - x;
 }
 
 void World::refreshContacts() {
@@ -288,36 +288,12 @@ void World::refreshContacts() {
 }
 
 void World::detectCollisions() {
-  auto t = Clock::now();
-  auto displacement = [&](BodyId id) -> Vec3 { return bodies_.state[id.index()].linearVelocity * settings_.dt; };
-  if (pool_ && pool_->worthSharing(rigidBodies_.size(), 128)) {
-    // which rigid bodies' boxes left their fat boxes, tested on the threads (from 128 bodies a worker: a
-    // test reads one compact box); the trees are then updated in the bodies' order on one, as without
-    // threads
-    leftFatBox_.resize(rigidBodies_.size());
-    pool_->run(rigidBodies_.size(), [&](int, std::size_t begin, std::size_t end) {
-      for (std::size_t k = begin; k < end; ++k) {
-        const BodyId id = rigidBodies_[k];
-        leftFatBox_[k] = broadphase_.keepsFatBox(id, bodyBoxes_[id.index()], displacement(id)) ? 0 : 1;
-      }
-    });
-    for (std::size_t k = 0; k < rigidBodies_.size(); ++k)
-      if (leftFatBox_[k]) broadphase_.moveBody(rigidBodies_[k], bodyBoxes_[rigidBodies_[k].index()], displacement(rigidBodies_[k]));
-  } else {
-    for (const BodyId id : rigidBodies_) broadphase_.moveBody(id, bodyBoxes_[id.index()], displacement(id));
-  }
-  for (const BodyId id : deformableBodies_) broadphase_.moveBody(id, bodyBoxes_[id.index()], displacement(id));
-  stats_.proxyMoves = broadphase_.reinsertions();
-  broadphase_.findPairs(planes_, pool_.get());
-  stats_.time.broadphase = secondsSince(t);
-
-  t = Clock::now();
-  contactFinder_.find(particles_, bodies_, connectors_, broadphase_.pairs(), broadphase_.planePairs(), planes_, bodyBoxes_, contacts_, pool_.get());
-  stats_.time.particleContacts = secondsSince(t);
-
-  t = Clock::now();
-  narrowPhase_.run(narrowPhaseInput(), contacts_, patches_, pool_.get());
-  stats_.time.narrowPhase = secondsSince(t);
+  timeStage(&StageTimes::broadphase, [&] { findBodyPairs(); });
+  timeStage(&StageTimes::particleContacts, [&] {
+    contactFinder_.find(particles_, bodies_, connectors_, broadphase_.pairs(), broadphase_.planePairs(), planes_, bodyBoxes_,
+                        contacts_, pool_.get());
+  });
+  timeStage(&StageTimes::narrowPhase, [&] { narrowPhase_.run(narrowPhaseInput(), contacts_, patches_, pool_.get()); });
   const NarrowPhaseStats& np = patches_.stats;
   stats_.patches = np.patches;
   stats_.patchesByCase = np.byCase;
@@ -354,6 +330,29 @@ void World::detectCollisions() {
     stats_.maxPenetration = std::max(stats_.maxPenetration, part.deepest);
   }
   contactsStale_ = false;
+}
+
+void World::findBodyPairs() {
+  auto displacement = [&](BodyId id) -> Vec3 { return bodies_.state[id.index()].linearVelocity * settings_.dt; };
+  if (pool_ && pool_->worthSharing(rigidBodies_.size(), 128)) {
+    // which rigid bodies' boxes left their fat boxes, tested on the threads (from 128 bodies a worker: a
+    // test reads one compact box); the trees are then updated in the bodies' order on one, as without
+    // threads
+    leftFatBox_.resize(rigidBodies_.size());
+    pool_->run(rigidBodies_.size(), [&](int, std::size_t begin, std::size_t end) {
+      for (std::size_t k = begin; k < end; ++k) {
+        const BodyId id = rigidBodies_[k];
+        leftFatBox_[k] = broadphase_.keepsFatBox(id, bodyBoxes_[id.index()], displacement(id)) ? 0 : 1;
+      }
+    });
+    for (std::size_t k = 0; k < rigidBodies_.size(); ++k)
+      if (leftFatBox_[k]) broadphase_.moveBody(rigidBodies_[k], bodyBoxes_[rigidBodies_[k].index()], displacement(rigidBodies_[k]));
+  } else {
+    for (const BodyId id : rigidBodies_) broadphase_.moveBody(id, bodyBoxes_[id.index()], displacement(id));
+  }
+  for (const BodyId id : deformableBodies_) broadphase_.moveBody(id, bodyBoxes_[id.index()], displacement(id));
+  stats_.proxyMoves = broadphase_.reinsertions();
+  broadphase_.findPairs(planes_, pool_.get());
 }
 
 void World::integrateVelocities() {

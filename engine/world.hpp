@@ -198,6 +198,12 @@ class World {
   Status restoreState(const StateArchive& archive);
 
  private:
+  /// Runs one stage of the step, its time into stats_.time.*stage and its exchanges' into
+  /// stats_.exchangeTime.*stage.
+  template <class Stage>
+  void timeStage(double StageTimes::*stage, const Stage& run);
+  /// The processes' seconds in exchanges so far (0 without processes).
+  [[nodiscard]] double exchangeSeconds() const;
   void integrateVelocities();
   void solveContacts();
   /// Rolling resistance of the last solve's patches, on the solver bodies' velocities.
@@ -242,6 +248,8 @@ class World {
   /// last estimated.
   void seedDeformedNormals();
   void detectCollisions();
+  /// The broadphase: bodies whose boxes left their fat boxes moved, and the body and plane pairs found.
+  void findBodyPairs();
   template <class Pose>
   void shareRigidPoses(const Pose& pose);
   void updateRigidParticles(BodyId id);

@@ -62,6 +62,17 @@ class JsonWriter {
     out_ << ']';
     return *this;
   }
+  JsonWriter& field(const std::string& k, std::span<const double> v) {
+    key(k);
+    out_ << '[';
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      out_ << (i ? ", " : "");
+      if (std::isfinite(v[i])) out_ << v[i];
+      else out_ << "null";
+    }
+    out_ << ']';
+    return *this;
+  }
   [[nodiscard]] std::string str() const { return out_.str(); }
 
  private:

@@ -221,6 +221,18 @@ int run(const RunArgs& args) {
     MPI_Gather(&mine, 1, MPI_UNSIGNED_LONG_LONG, all.data(), 1, MPI_UNSIGNED_LONG_LONG, 0, MPI_COMM_WORLD);
     for (std::size_t r = 0; r < all.size(); ++r) outputBytes[r] = static_cast<std::size_t>(all[r]);
   }
+  // each process's time stepping and, of it, in exchanges (the waits for the others included)
+  std::vector<double> stepSecondsByProcess(static_cast<std::size_t>(mpi.size()), s.stepSeconds);
+  std::vector<double> exchangeSecondsByProcess(static_cast<std::size_t>(mpi.size()), s.exchangeTimes.total);
+  if (mpi.size() > 1) {
+    const double mine[2] = {s.stepSeconds, s.exchangeTimes.total};
+    std::vector<double> all(2 * stepSecondsByProcess.size());
+    MPI_Gather(mine, 2, MPI_DOUBLE, all.data(), 2, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    for (std::size_t r = 0; r < stepSecondsByProcess.size(); ++r) {
+      stepSecondsByProcess[r] = all[2 * r];
+      exchangeSecondsByProcess[r] = all[2 * r + 1];
+    }
+  }
 #endif
   const double change = s.energyEnd.total() - s.energyStart.total();
   const StageTimes& t = s.stageTimes;
@@ -242,6 +254,8 @@ int run(const RunArgs& args) {
         .field("exchanges", processes ? processes->calls() : std::size_t{0})
         .field("exchange_bytes", processes ? processes->bytesReceived() : std::size_t{0})
         .field("output_bytes_by_process", std::span<const std::size_t>(outputBytes))
+        .field("step_seconds_by_process", std::span<const double>(stepSecondsByProcess))
+        .field("exchange_seconds_by_process", std::span<const double>(exchangeSecondsByProcess))
 #endif
         .field("simulated_seconds", world.time())
         .field("energy_start", s.energyStart.total())
@@ -280,6 +294,18 @@ int run(const RunArgs& args) {
         .field("solver", t.solver)
         .field("breakage", t.breakage)
         .end();
+#if VOLPAR_HAS_MPI
+    // of each stage's seconds, those in exchanges among the processes (process 0's)
+    const StageTimes& x = s.exchangeTimes;
+    j.begin("exchange_seconds_by_stage")
+        .field("integrate_positions", x.integratePositions)
+        .field("broadphase", x.broadphase)
+        .field("particle_contacts", x.particleContacts)
+        .field("narrow_phase", x.narrowPhase)
+        .field("solver", x.solver)
+        .field("breakage", x.breakage)
+        .end();
+#endif
     j.end();
     std::cout << j.str() << std::endl;
   } else {

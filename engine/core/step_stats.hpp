@@ -34,6 +34,9 @@ struct StageTimes {
 struct StepStats {
   std::int64_t step = 0;            ///< index of the step just taken (1 after the first step)
   StageTimes time;                  ///< [s]
+  /// Of `time`, what each stage spent in exchanges among processes, the waits for the others included
+  /// (docs/distributed.md) [s]; zeros without processes.
+  StageTimes exchangeTime;
   std::size_t bodyPairs = 0;        ///< candidate body pairs from the broadphase
   std::size_t planePairs = 0;       ///< candidate body-plane pairs
   std::size_t proxyMoves = 0;       ///< broadphase proxies reinserted (left their fat boxes)

@@ -64,7 +64,7 @@ class Alone final : public ProcessGroup {
   [[nodiscard]] int rank() const override { return real_.rank(); }
   [[nodiscard]] int size() const override { return real_.size(); }
   void share(std::span<std::byte>, std::span<const std::size_t>, std::span<const std::size_t>) override {}
-  void gather(std::span<const std::byte> mine, std::vector<std::byte>& all) override {
+  void gather(std::span<const std::byte> mine, ExchangeBytes& all) override {
     all.assign(mine.begin(), mine.end());
     // (the others' shares empty: two counts of groups, a time and two empty vectors, all zero bytes)
     all.resize(all.size() + static_cast<std::size_t>(size() - 1) * 5 * sizeof(std::uint64_t), std::byte{0});

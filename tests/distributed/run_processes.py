@@ -162,6 +162,8 @@ def main():
         alone = json.loads(r.stdout)["output_bytes_by_process"]
         if len(alone) != 1 or alone[0] <= 0:
             sys.exit("one process reports %s bytes written" % alone)
+        if json.loads(r.stdout)["exchange_seconds_by_process"] != [0]:
+            sys.exit("one process reports %s seconds in exchanges" % json.loads(r.stdout)["exchange_seconds_by_process"])
         for n in counts:
             out = os.path.join(a.workdir, "%s-%d.h5" % (name, n))
             r = mpirun(n, [a.volpar, "run", a.scene, "--steps", a.steps, "--threads", "1", "-o", out, "--json"] + extra)
@@ -172,6 +174,16 @@ def main():
             if report.get("processes") != n or not report.get("exchange_bytes", 0) > 0:
                 failures.append("%d processes: the report says %s processes and %s bytes exchanged" %
                                 (n, report.get("processes"), report.get("exchange_bytes")))
+            # each process's time stepping, and of it in exchanges: some, less than the whole; process 0's by stage
+            # add up to at most its whole
+            stepping = report.get("step_seconds_by_process", [])
+            waiting = report.get("exchange_seconds_by_process", [])
+            by_stage = sum(report.get("exchange_seconds_by_stage", {}).values())
+            if (len(stepping) != n or len(waiting) != n or
+                    not all(0 < x < t for x, t in zip(waiting, stepping)) or
+                    not 0 < by_stage <= waiting[0] * (1 + 1e-9)):
+                failures.append("%d processes: seconds stepping %s, in exchanges %s, by stage %s (process 0)" %
+                                (n, stepping, waiting, report.get("exchange_seconds_by_stage")))
             written = report.get("output_bytes_by_process", [])
             if len(written) != n or min(written) <= 0 or sum(written) != alone[0]:
                 failures.append("%d processes wrote %s bytes of the trajectory; expected every one some, %d in all "

@@ -37,7 +37,7 @@ class Silent final : public ProcessGroup {
   [[nodiscard]] int rank() const override { return real_.rank(); }
   [[nodiscard]] int size() const override { return real_.size(); }
   void share(std::span<std::byte>, std::span<const std::size_t>, std::span<const std::size_t>) override {}
-  void gather(std::span<const std::byte> mine, std::vector<std::byte>& all) override { real_.gather(mine, all); }
+  void gather(std::span<const std::byte> mine, ExchangeBytes& all) override { real_.gather(mine, all); }
 
  private:
   ProcessGroup& real_;
