@@ -10,8 +10,9 @@ KXxKYxKZ), the script writes the scene into DIR, runs it for S steps on one proc
 collapsed onto itself, so the steps measured have their contacts), and then times K steps resumed from that
 checkpoint with every layout P x T (P processes of T threads, under mpirun when P > 1), the layouts taking
 turns, R rounds. The first W steps after the checkpoint are left out (their buffers and caches are still
-cold): each measurement is a run of W + K steps less a run of W. It prints per size and layout the median time per step and of each stage, the exchanges and
-the bytes process 0 received per step, and the most memory process 0 held (max_resident_bytes). Every run must end
+cold): each measurement is a run of W + K steps less a run of W. It prints per size and layout the median time per step and of each stage, the exchanges,
+the time in them of the process that spent most there (the waits of the lighter shares included), the bytes
+process 0 received per step, and the most memory process 0 held (max_resident_bytes). Every run must end
 with the same energy as the others: the trajectory does not depend on the layout.
 
 With the layouts 1x1 and 2x1 among them, it then predicts the time per step for more processes on a cluster
@@ -119,6 +120,9 @@ def timed(volpar, checkpoint, warmup, steps, processes, threads):
         for key in ("step_seconds", "exchanges", "exchange_bytes"):
             if key in whole:
                 whole[key] -= first[key]
+        for key in ("exchange_seconds_by_process",):
+            if key in whole:
+                whole[key] = [a - b for a, b in zip(whole[key], first[key])]
         for stage in whole["stage_seconds"]:
             whole["stage_seconds"][stage] -= first["stage_seconds"][stage]
     return whole
@@ -165,17 +169,20 @@ def main():
                args.settle + args.warmup + args.steps, args.repeats))
         stages = ["broadphase", "particle_contacts", "narrow_phase", "solver", "integrate_positions"]
         print("| processes x threads | ms per step | " + " | ".join(stages) +
-              " | exchanges per step | kB received per step | MiB in process 0 |")
-        print("|---|---:|" + "---:|" * len(stages) + "---:|---:|---:|")
+              " | exchanges per step | ms in exchanges per step | kB received per step | MiB in process 0 |")
+        print("|---|---:|" + "---:|" * len(stages) + "---:|---:|---:|---:|")
         for layout in layouts:
             runs = results[layout]
             per_step = statistics.median(r["step_seconds"] for r in runs) / args.steps * 1e3
             stage = [statistics.median(r["stage_seconds"][s] for r in runs) / args.steps * 1e3 for s in stages]
             exchanges = statistics.median(r.get("exchanges", 0) for r in runs) / args.steps
+            # (the time in exchanges of the process that spent most in them: the waits of the lighter shares)
+            waited = statistics.median(max(r.get("exchange_seconds_by_process", [0])) for r in runs) / args.steps * 1e3
             received = statistics.median(r.get("exchange_bytes", 0) for r in runs) / args.steps / 1e3
             memory = statistics.median(r["max_resident_bytes"] for r in runs) / 2 ** 20
-            print("| %d x %d | %.1f | %s | %.0f | %.0f | %.0f |" %
-                  (layout[0], layout[1], per_step, " | ".join("%.1f" % t for t in stage), exchanges, received, memory))
+            print("| %d x %d | %.1f | %s | %.0f | %.1f | %.0f | %.0f |" %
+                  (layout[0], layout[1], per_step, " | ".join("%.1f" % t for t in stage), exchanges, waited, received,
+                   memory))
         if (1, 1) in results and (2, 1) in results:
             model(n, results[(1, 1)], results[(2, 1)], args)
 
