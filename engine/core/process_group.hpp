@@ -17,8 +17,9 @@ namespace volpar {
 
 /// An allocator whose vectors leave the elements that resize() adds as they are (default-initialised: for
 /// bytes, not written), where std::allocator's are zeroed first. The buffers of the exchanges are resized
-/// to what arrives and then written whole: zeroing them first cost a gather of the narrow phase's patches
-/// about 0.5 ms a step of pile-8000 (its buffer serves smaller exchanges in between, so it grows each time).
+/// to what arrives and then written whole: zeroing them first cost each of two processes about 0.7 ms a step
+/// of pile-8000, most of it in the gather of the narrow phase's patches (its buffer serves smaller exchanges
+/// in between, so it grows each time).
 template <class T>
 struct UninitializedAllocator : std::allocator<T> {
   template <class U>
