@@ -91,6 +91,19 @@ std::size_t maxResidentBytes() {
   return static_cast<std::size_t>(usage.ru_maxrss) * 1024;
 }
 
+/// Each stage's seconds, as the object `name` of the report.
+void stageFields(JsonWriter& j, const std::string& name, const StageTimes& t) {
+  j.begin(name)
+      .field("integrate_velocities", t.integrateVelocities)
+      .field("integrate_positions", t.integratePositions)
+      .field("broadphase", t.broadphase)
+      .field("particle_contacts", t.particleContacts)
+      .field("narrow_phase", t.narrowPhase)
+      .field("solver", t.solver)
+      .field("breakage", t.breakage)
+      .end();
+}
+
 }  // namespace
 
 int run(const RunArgs& args) {
@@ -285,26 +298,10 @@ int run(const RunArgs& args) {
     j.begin("patches_by_case");
     for (std::size_t k = 0; k < kPlaneCaseCount; ++k) j.field(planeCaseName(static_cast<PlaneCase>(k)), s.patchesByCase[k]);
     j.end();
-    j.begin("stage_seconds")
-        .field("integrate_velocities", t.integrateVelocities)
-        .field("integrate_positions", t.integratePositions)
-        .field("broadphase", t.broadphase)
-        .field("particle_contacts", t.particleContacts)
-        .field("narrow_phase", t.narrowPhase)
-        .field("solver", t.solver)
-        .field("breakage", t.breakage)
-        .end();
+    stageFields(j, "stage_seconds", t);
 #if VOLPAR_HAS_MPI
     // of each stage's seconds, those in exchanges among the processes (process 0's)
-    const StageTimes& x = s.exchangeTimes;
-    j.begin("exchange_seconds_by_stage")
-        .field("integrate_positions", x.integratePositions)
-        .field("broadphase", x.broadphase)
-        .field("particle_contacts", x.particleContacts)
-        .field("narrow_phase", x.narrowPhase)
-        .field("solver", x.solver)
-        .field("breakage", x.breakage)
-        .end();
+    stageFields(j, "exchange_seconds_by_stage", s.exchangeTimes);
 #endif
     j.end();
     std::cout << j.str() << std::endl;
