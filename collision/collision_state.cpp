@@ -329,6 +329,7 @@ bool NarrowPhase::restoreCache(StateReader& r) {
     p.normalSide = static_cast<std::int8_t>(normalSide[i]);
   }
   cache_ = std::move(c);
+  everyKeepsCache();  // (with processes, every process keeps every entry until its first run)
   return true;
 }
 

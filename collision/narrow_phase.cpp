@@ -46,7 +46,10 @@ const char* normalSourceName(NormalSource s) {
 }
 
 
-void NarrowPhase::clearCache() { cache_.clear(); }
+void NarrowPhase::clearCache() {
+  cache_.clear();
+  everyKeepsCache();
+}
 
 bool NarrowPhase::cacheable(const NarrowPhaseInput& in, const ContactGroup& g) {
   if (g.a == g.b) return false;  // self-contact of a deformable body
@@ -214,6 +217,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
     o.patches.clear();
     o.contacts.clear();
     o.stats = NarrowPhaseStats{};
+    o.taken.clear();
     o.cache.clear();
   }
   // the groups in one contiguous range per worker, sized by the ranges' costs in the last run and cut into
@@ -227,10 +231,11 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
     for (std::size_t gi = lo + begin; gi < lo + end; ++gi) {
       const ContactGroup& g = contacts.groups[gi];
       const bool cacheableGroup = settings_.reuse && cacheable(in, g);
-      // (with processes, found already: divideGroups())
-      const std::uint32_t match = ranks > 1         ? match_[gi]
-                                  : cacheableGroup ? takenOver(in, contacts, g, cursor)
-                                                   : kNoMatch;
+      // (with processes, the entry is found already, by divideGroups(), and tested here)
+      std::uint32_t match = kNoMatch;
+      if (ranks == 1) match = cacheableGroup ? takenOver(in, contacts, g, cursor) : kNoMatch;
+      else if (match_[gi] != kNoMatch && reusable(in, contacts, g, cache_.groups[match_[gi]])) match = match_[gi];
+      if (ranks > 1) w.o->taken.push_back(match != kNoMatch ? 1 : 0);
       if (match != kNoMatch) {
         reuse(in, contacts, g, match, w, out);
         continue;
@@ -317,6 +322,7 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
                                  : std::is_sorted(cache_.groups.begin(), cache_.groups.end(),
                                                   [](const CachedGroup& x, const CachedGroup& y) { return x.key < y.key; });
   if (!inOrder) cache_.clear();
+  if (ranks > 1) noteKeepers(contacts, listed);
 }
 
 template <class T>

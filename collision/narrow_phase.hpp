@@ -49,9 +49,10 @@ class NarrowPhase {
   /// Shares the groups of later runs with other processes (null: none): each computes a contiguous run of
   /// the groups, and every one gets every process's patches (docs/distributed.md). Every process calls run()
   /// with the same input and gets the same output, that of one process alone. Each process keeps the
-  /// entries for reuse of the groups it computed; an entry goes to another process only when its group, still
-  /// to be taken over, has passed to that process.
-  void setProcesses(ProcessGroup* processes) { processes_ = processes; }
+  /// entries for reuse of the groups it computed; an entry goes to another process only when its group has
+  /// passed to that process. The entries kept so far (by runs of this process alone, which every process made
+  /// alike) are every process's until its first run with the others.
+  void setProcesses(ProcessGroup* processes);
   /// Patches and planes for every contact group. `pool` (optional) shares the groups among threads.
   void run(const NarrowPhaseInput& in, const ContactSet& contacts, PatchSet& out, ThreadPool* pool = nullptr);
   /// Forgets the patches kept for reuse (the next run computes every patch).
@@ -113,6 +114,7 @@ class NarrowPhase {
     LargeVector<ContactPatch> patches;
     LargeVector<std::uint32_t> contacts;
     NarrowPhaseStats stats;
+    LargeVector<std::uint8_t> taken;  // (with processes: per group of the chunk, 1 where its patches were taken over)
     Cache cache;
     // where it goes in the merged output
     std::size_t patchBase = 0, contactBase = 0, groupBase = 0, pairBase = 0, orderBase = 0, cachedPatchBase = 0;
@@ -155,21 +157,40 @@ class NarrowPhase {
   ExchangeBytes mine_, all_;
   LargeVector<std::size_t> shareOffset_, shareCount_;
   LargeVector<Output> gathered_;
-  /// With processes: per group of this process's run, the cache entry whose patches it takes over (kNoMatch:
-  /// none); and each process's first group (and the end), the groups divided in runs of equal estimated cost.
+  /// With processes: per group of this process's run, its entry in the cache (kNoMatch: none), which the
+  /// workers test as one process does; and each process's first group (and the end), the groups divided in
+  /// runs of equal estimated cost.
   LargeVector<std::uint32_t> match_;
   LargeVector<std::size_t> groupStart_;
-  /// With processes: per group a bit, set where this process keeps an entry it may take over (held_); the
-  /// same bits of every process, process by process (heldBy_), and their union (heldAnywhere_).
-  LargeVector<std::uint64_t> held_, heldBy_, heldAnywhere_;
+  /// With processes, who keeps which entry, as every process knows it from the last run (no exchange): the
+  /// keys of the last run's cacheable groups, in key order, the process whose run held each (which keeps its
+  /// entry) and whether its patches were taken over. `everyKeeps_`: every process keeps the same entries
+  /// (none yet, or those of a checkpoint), so that none needs another's.
+  LargeVector<GroupKey> keptKeys_;
+  LargeVector<std::uint32_t> keptBy_;
+  LargeVector<std::uint8_t> keptTaken_;
+  bool everyKeeps_ = true;
+  /// With processes, per group of this run: the process keeping its entry (kNoMatch: none), whether it is
+  /// cacheable and its estimated cost.
+  LargeVector<std::uint32_t> keeper_;
+  LargeVector<std::uint8_t> cacheable_, cost_;
   bool keysInOrder_ = true;  // (with processes: whether the cacheable groups come in key order)
   std::size_t entriesReceived_ = 0;
   Cache received_;  // (with processes: the entries handed over in the last run, every process's)
-  /// Finds the groups whose patches each process can take over, divides the groups among the processes
-  /// (groupStart_), and hands each process the entries of its groups that another keeps (match_).
+  /// Divides the groups among the processes (groupStart_) by their costs estimated from the last run (a
+  /// group whose entry some process keeps and whose patches were taken over in the last run counts as taken
+  /// over again), hands each process the entries of its groups that another keeps, and finds its own
+  /// groups' entries (match_). Nothing waits for a test of the entries: each process's workers test its
+  /// own groups' entries as they go, as one process's do.
   void divideGroups(const NarrowPhaseInput& in, const ContactSet& contacts);
-  /// Hands over the entries of groups taken over that passed to another process; `words`: of the bits.
-  void moveEntries(const ContactSet& contacts, std::size_t words);
+  /// Hands over the entries of the groups that passed to another process than the one keeping them.
+  void moveEntries(const ContactSet& contacts);
+  /// Every process keeps the entries of cache_, as they stand (all alike: none, a checkpoint's, or those of runs
+  /// each process made alone).
+  void everyKeepsCache();
+  /// Who keeps which entry for the next run (keptKeys_, keptBy_, keptTaken_), from this run's division and
+  /// every process's chunks' `taken` (listed of gathered_).
+  void noteKeepers(const ContactSet& contacts, std::size_t listed);
   /// One cache entry as bytes (`tag`, the group, its pairs, order and patches), and back (appended to `to`).
   static void appendEntry(ExchangeBytes& bytes, std::uint32_t tag, const Cache& from, std::size_t entry);
   static std::uint32_t readEntry(const std::byte*& at, Cache& to);

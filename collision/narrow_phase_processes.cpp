@@ -19,6 +19,7 @@ void eachTravelling(O& o, const F& f) {
   f(o.patches);
   f(o.contacts);
   f(o.stats);
+  f(o.taken);
 }
 
 template <class T>
@@ -35,9 +36,20 @@ void readRange(const std::byte*& at, std::vector<T, A>& to, std::size_t n) {
   at += n * sizeof(T);
 }
 
-bool bit(const std::uint64_t* words, std::size_t i) { return ((words[i / 64] >> (i % 64)) & 1u) != 0; }
-
 }  // namespace
+
+void NarrowPhase::setProcesses(ProcessGroup* processes) {
+  processes_ = processes;
+  everyKeepsCache();
+}
+
+void NarrowPhase::everyKeepsCache() {
+  keptKeys_.clear();
+  for (const CachedGroup& g : cache_.groups) keptKeys_.push_back(g.key);
+  keptBy_.assign(keptKeys_.size(), 0);
+  keptTaken_.assign(keptKeys_.size(), 1);
+  everyKeeps_ = true;
+}
 
 std::size_t NarrowPhase::gatherChunks(std::size_t count) {
   // (the chunks' vectors and counts as bytes: the processes are copies of one program on one kind of machine)
@@ -94,80 +106,119 @@ void NarrowPhase::divideGroups(const NarrowPhaseInput& in, const ContactSet& con
   // a group whose patches are taken over costs about a ninth of one computed afresh (pile-1000's collapse:
   // 0.65 against 6 microseconds a patch)
   constexpr std::uint64_t kTakenOver = 1, kComputed = 9;
-  const std::size_t groups = contacts.groups.size(), words = (groups + 63) / 64;
+  const std::size_t groups = contacts.groups.size();
   const auto ranks = static_cast<std::size_t>(processes_->size());
-  // the groups whose patches this process can take over from the entries it keeps (the test one process
-  // alone makes, on the entry it would have: every entry is as one process alone made it)
-  match_.resize(groups);
-  held_.assign(words, 0);
+  const auto me = static_cast<std::uint32_t>(processes_->rank());
+  // per group: whether it is cacheable, the process keeping its entry (every process knows it from the last
+  // run's division: the groups' keys come in order, as the kept ones do, so one cursor walks both) and its
+  // cost as the last run found it
+  keeper_.resize(groups);
+  cacheable_.resize(groups);
+  cost_.resize(groups);
   keysInOrder_ = true;
   bool anyKey = false;
   GroupKey last;
-  CacheCursor cursor = cache_.groups.cbegin();
+  std::uint64_t total = 0;
+  std::size_t cursor = 0;
   for (std::size_t gi = 0; gi < groups; ++gi) {
     const ContactGroup& g = contacts.groups[gi];
     const bool cacheableGroup = settings_.reuse && cacheable(in, g);
-    match_[gi] = cacheableGroup ? takenOver(in, contacts, g, cursor) : kNoMatch;
-    if (match_[gi] != kNoMatch) held_[gi / 64] |= std::uint64_t{1} << (gi % 64);
-    if (!cacheableGroup) continue;
-    const GroupKey key = keyOf(g);
-    keysInOrder_ = keysInOrder_ && !(anyKey && key < last);
-    last = key;
-    anyKey = true;
+    cacheable_[gi] = cacheableGroup ? 1 : 0;
+    keeper_[gi] = kNoMatch;
+    bool taken = false;
+    if (cacheableGroup) {
+      const GroupKey key = keyOf(g);
+      if (anyKey && key < last) {  // (out of order: the cursor starts again; the cache will be cleared)
+        keysInOrder_ = false;
+        cursor = static_cast<std::size_t>(std::lower_bound(keptKeys_.begin(), keptKeys_.end(), key) -
+                                          keptKeys_.begin());
+      }
+      last = key;
+      anyKey = true;
+      while (cursor < keptKeys_.size() && keptKeys_[cursor] < key) ++cursor;
+      if (cursor < keptKeys_.size() && keptKeys_[cursor] == key) {
+        keeper_[gi] = everyKeeps_ ? me : keptBy_[cursor];  // (every process keeps it: this one)
+        taken = keptTaken_[cursor] != 0;
+      }
+    }
+    cost_[gi] = static_cast<std::uint8_t>(taken ? kTakenOver : kComputed);
+    total += cost_[gi];
   }
-  // every process's bits: the same estimate of the cost on every process
-  processes_->gather(std::as_bytes(std::span<const std::uint64_t>(held_)), all_);
-  VOLPAR_ASSERT(all_.size() == ranks * words * sizeof(std::uint64_t), "processes disagree on the contact groups");
-  heldBy_.resize(ranks * words);
-  if (!all_.empty()) std::memcpy(static_cast<void*>(heldBy_.data()), all_.data(), all_.size());
-  heldAnywhere_.assign(words, 0);
-  for (std::size_t r = 0; r < ranks; ++r)
-    for (std::size_t k = 0; k < words; ++k) heldAnywhere_[k] |= heldBy_[r * words + k];
-  std::uint64_t total = 0;
-  for (std::size_t gi = 0; gi < groups; ++gi) total += bit(heldAnywhere_.data(), gi) ? kTakenOver : kComputed;
-  // process r starts at the first group before which the cost reaches r / R of the total
+  // process r starts at the first group before which the estimated cost reaches r / R of the total
   groupStart_.assign(ranks + 1, groups);
   groupStart_[0] = 0;
   std::uint64_t before = 0;
   std::size_t r = 1;
   for (std::size_t gi = 0; gi < groups && r < ranks; ++gi) {
     while (r < ranks && before * ranks >= r * total) groupStart_[r++] = gi;
-    before += bit(heldAnywhere_.data(), gi) ? kTakenOver : kComputed;
+    before += cost_[gi];
   }
-  moveEntries(contacts, words);
+  moveEntries(contacts);
 }
 
-void NarrowPhase::moveEntries(const ContactSet& contacts, std::size_t words) {
-  // a group to be taken over by a process that does not keep its entry gets it from the first process that
-  // does; every process sees alike from the bits whether any entry moves
+void NarrowPhase::moveEntries(const ContactSet& contacts) {
+  // the entries of this process's own groups that it keeps (its cache is in key order, as its groups are)
   const auto ranks = static_cast<std::size_t>(processes_->size()), me = static_cast<std::size_t>(processes_->rank());
+  const std::size_t lo = groupStart_[me], hi = groupStart_[me + 1];
+  const auto byKey = [](const CachedGroup& c, const GroupKey& k) { return c.key < k; };
+  const auto find = [&](std::size_t gi, CacheCursor& at) -> std::uint32_t {
+    const GroupKey key = keyOf(contacts.groups[gi]);
+    if (at == cache_.groups.cbegin() || !(std::prev(at)->key < key))
+      at = std::lower_bound(cache_.groups.cbegin(), cache_.groups.cend(), key, byKey);
+    while (at != cache_.groups.cend() && at->key < key) ++at;
+    VOLPAR_ASSERT(at != cache_.groups.cend() && at->key == key, "an entry kept for reuse is missing");
+    return static_cast<std::uint32_t>(at - cache_.groups.cbegin());
+  };
+  match_.resize(contacts.groups.size());
+  CacheCursor at = cache_.groups.cbegin();
+  for (std::size_t gi = lo; gi < hi; ++gi) match_[gi] = keeper_[gi] == me ? find(gi, at) : kNoMatch;
   entriesReceived_ = 0;
+  if (everyKeeps_) return;  // (every process keeps every entry: none moves)
+  // a group in another process's run than the one keeping its entry gets the entry from its keeper; every
+  // process sees alike whether any entry moves
   mine_.clear();
   bool moves = false;
-  for (std::size_t r = 0; r < ranks; ++r) {
-    const std::uint64_t* own = heldBy_.data() + r * words;
+  at = cache_.groups.cbegin();
+  for (std::size_t r = 0; r < ranks; ++r)
     for (std::size_t gi = groupStart_[r]; gi < groupStart_[r + 1]; ++gi) {
-      if (!bit(heldAnywhere_.data(), gi) || bit(own, gi)) continue;
+      if (keeper_[gi] == kNoMatch || keeper_[gi] == r) continue;
       moves = true;
-      std::size_t from = 0;
-      while (!bit(heldBy_.data() + from * words, gi)) ++from;
-      if (from == me) appendEntry(mine_, static_cast<std::uint32_t>(gi), cache_, match_[gi]);
+      if (keeper_[gi] == me) appendEntry(mine_, static_cast<std::uint32_t>(gi), cache_, find(gi, at));
     }
-  }
   if (!moves) return;
   processes_->gather(mine_, all_);
   // (the entries for this process's groups, after its own: the groups' lookups are done, by match_)
-  const std::size_t lo = groupStart_[me], hi = groupStart_[me + 1];
-  const std::byte* at = all_.data();
+  const std::byte* from = all_.data();
   const std::byte* const end = all_.data() + all_.size();
   received_.clear();
-  while (at < end) {
-    const std::uint32_t gi = readEntry(at, received_);
+  while (from < end) {
+    const std::uint32_t gi = readEntry(from, received_);
     if (gi < lo || gi >= hi) continue;  // (another process's)
     copyEntry(received_, received_.groups.size() - 1, cache_);
     VOLPAR_ASSERT(keyOf(contacts.groups[gi]) == cache_.groups.back().key, "an entry for reuse sent for another group");
     match_[gi] = static_cast<std::uint32_t>(cache_.groups.size() - 1);
     ++entriesReceived_;
+  }
+}
+
+void NarrowPhase::noteKeepers(const ContactSet& contacts, std::size_t listed) {
+  // every group's outcome, in group order (every process's chunks in process order, each chunk's groups in
+  // order), and each cacheable group's key with the process whose run held it: that process keeps its entry
+  keptKeys_.clear();
+  keptBy_.clear();
+  keptTaken_.clear();
+  everyKeeps_ = false;
+  if (!keysInOrder_) return;  // (the cache is cleared: nothing kept)
+  std::size_t k = 0, j = 0, r = 0;
+  for (std::size_t gi = 0; gi < contacts.groups.size(); ++gi) {
+    while (k < listed && j >= gathered_[k].taken.size()) ++k, j = 0;
+    VOLPAR_ASSERT(k < listed, "a group missing from the processes' chunks");
+    const std::uint8_t taken = gathered_[k].taken[j++];
+    while (gi >= groupStart_[r + 1]) ++r;
+    if (!cacheable_[gi]) continue;
+    keptKeys_.push_back(keyOf(contacts.groups[gi]));
+    keptBy_.push_back(static_cast<std::uint32_t>(r));
+    keptTaken_.push_back(taken);
   }
 }
 

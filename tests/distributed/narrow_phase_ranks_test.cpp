@@ -2,7 +2,10 @@
 // of the contact groups and keeps the entries for reuse of its own groups, handing an entry over when its
 // group passes to another process; every process then holds the patches one process alone makes, bit for
 // bit, step after step, with one or two threads each. The entries are divided (each kept by one process)
-// and saved in a checkpoint as one process saves them.
+// and saved in a checkpoint as one process saves them; restored from one (every process then keeps every
+// entry), or given the processes only after some runs alone, the processes go on alike. Which process keeps
+// which entry every process knows from the last run, so a run in which no entry passes between processes
+// exchanges only its results.
 
 #include <gtest/gtest.h>
 #include <mpi.h>
@@ -44,19 +47,20 @@ bool same(const StateArchive& x, const StateArchive& y) {
 }
 
 struct Compared {
-  bool allSame = true, divided = true, savedSame = true;
+  bool allSame = true, divided = true, savedSame = true, restored = true;
   std::size_t patches = 0, reused = 0, received = 0, mostKept = 0, keptAlone = 0;
+  /// runs in which no entry passed between processes, and the most exchanges any of them made
+  std::size_t runsWithoutMoves = 0, mostExchangesWithoutMoves = 0;
 };
 
 /// Steps the scene alone and, after every step, makes its patches again with a narrow phase shared by the
 /// processes through `exchange` (and with one of its own), comparing them with the world's.
-Compared compare(ProcessGroup& exchange, int threads, int steps) {
+Compared compare(MpiProcessGroup& exchange, int threads, int steps) {
   Compared result;
   World w = test::worldFromString(test::kHeapScene, "heap.yaml");
   NarrowPhase shared, alone;
   shared.setSettings(w.settings().planes);
   alone.setSettings(w.settings().planes);
-  shared.setProcesses(&exchange);
   ThreadPool pool(threads);
   ThreadPool* const p = threads > 1 ? &pool : nullptr;
   PatchSet fromShared, fromAlone;
@@ -67,11 +71,28 @@ Compared compare(ProcessGroup& exchange, int threads, int steps) {
       result.allSame = false;
       return result;
     }
+    // (the first runs made by each process alone, as a world's first contacts are found before it is given
+    // its processes: every process keeps every entry of those)
+    if (step == 10) shared.setProcesses(&exchange);
+    if (step == 200) {
+      // a checkpoint of one process restored into the shared narrow phase: every process then keeps every
+      // entry until its next run
+      StateArchive one;
+      alone.saveCache(one);
+      StateReader reader(one);
+      result.restored = shared.restoreCache(reader);
+    }
+    const std::size_t callsBefore = exchange.calls();
     shared.run(w.narrowPhaseInput(), w.contacts(), fromShared, p);
+    const std::size_t calls = exchange.calls() - callsBefore;
+    if (step >= 10 && sumOver(shared.entriesReceived()) == 0) {
+      ++result.runsWithoutMoves;
+      result.mostExchangesWithoutMoves = std::max(result.mostExchangesWithoutMoves, calls);
+    }
     alone.run(w.narrowPhaseInput(), w.contacts(), fromAlone, p);
     result.allSame = result.allSame && same(fromShared, w.patches()) && same(fromAlone, w.patches());
     // every entry kept by exactly one process
-    result.divided = result.divided && sumOver(shared.cachedGroups()) == alone.cachedGroups();
+    if (step >= 10) result.divided = result.divided && sumOver(shared.cachedGroups()) == alone.cachedGroups();
     result.patches += w.patches().patches.size();
     result.reused += w.patches().stats.reused;
     result.received += shared.entriesReceived();
@@ -95,6 +116,7 @@ TEST(NarrowPhaseRanks, EveryProcessMakesThePatchesOfOne) {
     EXPECT_TRUE(everywhere(c.allSame)) << ranks << " processes, " << threads << " threads";
     EXPECT_TRUE(everywhere(c.divided));
     EXPECT_TRUE(everywhere(c.savedSame));
+    EXPECT_TRUE(everywhere(c.restored));
     // (what the comparison saw: many patches, most taken over from the step before)
     EXPECT_GT(c.patches, 20000u);
     EXPECT_GT(c.reused, c.patches / 2);
@@ -102,6 +124,10 @@ TEST(NarrowPhaseRanks, EveryProcessMakesThePatchesOfOne) {
       // the processes kept a part each, and entries did pass from one to another
       EXPECT_TRUE(everywhere(c.mostKept < c.keptAlone));
       EXPECT_GT(sumOver(c.received), 0u);
+      // a run in which no entry passed exchanged the patches, and the contacts' depths and flips, alone:
+      // nothing waits for the others' tests of their entries before the groups are divided
+      EXPECT_GT(c.runsWithoutMoves, 20u);
+      EXPECT_EQ(c.mostExchangesWithoutMoves, 3u);
     }
   }
 }
