@@ -231,11 +231,14 @@ void NarrowPhase::run(const NarrowPhaseInput& in, const ContactSet& contacts, Pa
     for (std::size_t gi = lo + begin; gi < lo + end; ++gi) {
       const ContactGroup& g = contacts.groups[gi];
       const bool cacheableGroup = settings_.reuse && cacheable(in, g);
-      // (with processes, the entry is found already, by divideGroups(), and tested here)
       std::uint32_t match = kNoMatch;
-      if (ranks == 1) match = cacheableGroup ? takenOver(in, contacts, g, cursor) : kNoMatch;
-      else if (match_[gi] != kNoMatch && reusable(in, contacts, g, cache_.groups[match_[gi]])) match = match_[gi];
-      if (ranks > 1) w.o->taken.push_back(match != kNoMatch ? 1 : 0);
+      if (ranks == 1) {
+        if (cacheableGroup) match = takenOver(in, contacts, g, cursor);
+      } else {
+        // (the entry found already, by divideGroups(), tested here; whether it was taken over travels)
+        if (match_[gi] != kNoMatch && reusable(in, contacts, g, cache_.groups[match_[gi]])) match = match_[gi];
+        w.o->taken.push_back(match != kNoMatch ? 1 : 0);
+      }
       if (match != kNoMatch) {
         reuse(in, contacts, g, match, w, out);
         continue;

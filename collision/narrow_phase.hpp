@@ -165,7 +165,7 @@ class NarrowPhase {
   /// With processes, who keeps which entry, as every process knows it from the last run (no exchange): the
   /// keys of the last run's cacheable groups, in key order, the process whose run held each (which keeps its
   /// entry) and whether its patches were taken over. `everyKeeps_`: every process keeps the same entries
-  /// (none yet, or those of a checkpoint), so that none needs another's.
+  /// (none yet, a checkpoint's, or those of runs each made alone: everyKeepsCache()), so none needs another's.
   LargeVector<GroupKey> keptKeys_;
   LargeVector<std::uint32_t> keptBy_;
   LargeVector<std::uint8_t> keptTaken_;

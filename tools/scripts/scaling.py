@@ -120,9 +120,9 @@ def timed(volpar, checkpoint, warmup, steps, processes, threads):
         for key in ("step_seconds", "exchanges", "exchange_bytes"):
             if key in whole:
                 whole[key] -= first[key]
-        for key in ("exchange_seconds_by_process",):
-            if key in whole:
-                whole[key] = [a - b for a, b in zip(whole[key], first[key])]
+        if "exchange_seconds_by_process" in whole:
+            whole["exchange_seconds_by_process"] = [a - b for a, b in zip(whole["exchange_seconds_by_process"],
+                                                                          first["exchange_seconds_by_process"])]
         for stage in whole["stage_seconds"]:
             whole["stage_seconds"][stage] -= first["stage_seconds"][stage]
     return whole
