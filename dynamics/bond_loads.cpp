@@ -71,41 +71,29 @@ Eigen::Matrix<double, 12, 12> beamStiffness(const Vec3& e, double length, double
   return b.transpose() * dm * b;
 }
 
-/// Calls f(row, column, value) for each entry of a beam's stiffness in the frame's matrix, its two ends'
-/// six freedoms each (zeros too: the pattern keeps them, so that removing the beam changes values only).
-template <class F>
-void forEachEntry(std::uint32_t a, std::uint32_t b, const Eigen::Matrix<double, 12, 12>& ke, F&& f) {
-  const std::uint32_t node[2] = {a, b};
-  for (int bi = 0; bi < 2; ++bi)
-    for (int bj = 0; bj < 2; ++bj)
-      for (int i = 0; i < 6; ++i)
-        for (int j = 0; j < 6; ++j)
-          f(static_cast<Eigen::Index>(6 * node[bi]) + i, static_cast<Eigen::Index>(6 * node[bj]) + j, ke(6 * bi + i, 6 * bj + j));
-}
-
 }  // namespace
 
 bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const ConnectorStore& c,
                       std::span<const ConnectorId> bonds) {
   bonds_.assign(bonds.begin(), bonds.end());
   beams_.clear();
-  stale_ = false;
   removed_.clear();
-  factorisedAt_ = 0;
+  iterations_ = 0;
   if (bonds_.empty()) return false;
   const std::size_t n = body.particles.size();
-  std::size_t maxId = 0;
-  for (const ParticleId q : body.particles) maxId = std::max(maxId, q.index());
-  local_.assign(maxId + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) local_[body.particles[i].index()] = static_cast<std::uint32_t>(i);
-  std::vector<Eigen::Triplet<double>> t;
-  t.reserve(bonds_.size() * 144 + 6 * n);
-  Eigen::VectorXd diag = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(6 * n));
+  // particle id -> local index, by a sorted list of the body's ids (a fragment's ids are few and scattered)
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> local(n);
+  for (std::size_t i = 0; i < n; ++i) local[i] = {static_cast<std::uint32_t>(body.particles[i].index()), static_cast<std::uint32_t>(i)};
+  std::sort(local.begin(), local.end());
+  const auto localOf = [&](ParticleId q) {
+    return std::lower_bound(local.begin(), local.end(), std::pair{static_cast<std::uint32_t>(q.index()), 0u})->second;
+  };
+  beams_.reserve(bonds_.size());
   for (const ConnectorId id : bonds_) {
     const std::size_t k = id.index();
     Beam beam;
-    beam.a = local_[c.a[k].index()];
-    beam.b = local_[c.b[k].index()];
+    beam.a = localOf(c.a[k]);
+    beam.b = localOf(c.b[k]);
     const Vec3 d = p.local[c.b[k].index()] - p.local[c.a[k].index()];
     beam.length = d.norm();
     beam.e = d / beam.length;
@@ -116,60 +104,95 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
     beam.torsion = shearModulus * 2.0 * inertia / beam.length;
     beam.bending = e * inertia / beam.length;
     beams_.push_back(beam);
-    forEachEntry(beam.a, beam.b, beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending),
-                 [&](Eigen::Index row, Eigen::Index col, double v) {
-                   t.emplace_back(static_cast<int>(row), static_cast<int>(col), v);
-                   if (row == col) diag[row] += v;
-                 });
+  }
+  // the pattern: each particle's bonded neighbours
+  std::vector<std::uint32_t> neighbourStart(n + 1, 0), neighbours;
+  {
+    for (const Beam& b : beams_) ++neighbourStart[b.a + 1], ++neighbourStart[b.b + 1];
+    for (std::size_t i = 0; i < n; ++i) neighbourStart[i + 1] += neighbourStart[i];
+    neighbours.resize(neighbourStart[n]);
+    std::vector<std::uint32_t> fill(neighbourStart.begin(), neighbourStart.end() - 1);
+    for (const Beam& b : beams_) neighbours[fill[b.a]++] = b.b, neighbours[fill[b.b]++] = b.a;
+    // sorted, without duplicates (two bonds between the same particles share their blocks)
+    std::uint32_t out = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto first = neighbours.begin() + neighbourStart[i], last = neighbours.begin() + neighbourStart[i + 1];
+      std::sort(first, last);
+      const auto unique = std::unique(first, last);
+      const std::uint32_t begin = out;
+      for (auto it = first; it != unique; ++it) neighbours[out++] = *it;
+      neighbourStart[i] = begin;
+    }
+    neighbourStart[n] = out;
+    neighbours.resize(out);
+  }
+  k_.setPattern(neighbourStart, neighbours);
+  for (Beam& beam : beams_) {
+    const Eigen::Matrix<double, 12, 12> ke = beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending);
+    beam.ab = k_.find(beam.a, beam.b);
+    beam.ba = k_.find(beam.b, beam.a);
+    k_.block[k_.diagonal[beam.a]] += ke.block<6, 6>(0, 0);
+    k_.block[k_.diagonal[beam.b]] += ke.block<6, 6>(6, 6);
+    k_.block[beam.ab] += ke.block<6, 6>(0, 6);
+    k_.block[beam.ba] += ke.block<6, 6>(6, 0);
   }
   // the six rigid-body modes make K singular; a tiny regularisation (per kind of freedom, which differ in
   // units) picks the solution without rigid motion and leaves a self-equilibrated load's deformations as they are
   double maxMove = 0.0, maxTurn = 0.0;
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) {
-      maxMove = std::max(maxMove, diag[static_cast<Eigen::Index>(6 * i) + k]);
-      maxTurn = std::max(maxTurn, diag[static_cast<Eigen::Index>(6 * i) + 3 + k]);
+      maxMove = std::max(maxMove, k_.block[k_.diagonal[i]](k, k));
+      maxTurn = std::max(maxTurn, k_.block[k_.diagonal[i]](3 + k, 3 + k));
     }
   for (std::size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 6; ++k)
-      t.emplace_back(static_cast<int>(6 * i) + k, static_cast<int>(6 * i) + k, 1e-9 * (k < 3 ? maxMove : maxTurn));
-  k_.resize(static_cast<Eigen::Index>(6 * n), static_cast<Eigen::Index>(6 * n));
-  k_.setFromTriplets(t.begin(), t.end());
-  k_.makeCompressed();
-  ldlt_.analyzePattern(k_);
-  f_.resize(static_cast<Eigen::Index>(6 * n));
-  return factorise();
-}
-
-bool BondLoads::factorise() {
-  ldlt_.factorize(k_);
-  stale_ = false;
-  factorisedAt_ = removed_.size();
-  return ldlt_.info() == Eigen::Success;
+    for (int k = 0; k < 6; ++k) k_.block[k_.diagonal[i]](k, k) += 1e-9 * (k < 3 ? maxMove : maxTurn);
+  std::vector<Vec3> positions(n);
+  for (std::size_t i = 0; i < n; ++i) positions[i] = p.local[body.particles[i].index()];
+  multigrid_.build(k_, positions);
+  const auto dofs = static_cast<Eigen::Index>(6 * n);
+  f_.resize(dofs);
+  u_.setZero(dofs);
+  r_.resize(dofs);
+  z_.resize(dofs);
+  p_.resize(dofs);
+  q_.resize(dofs);
+  return true;
 }
 
 void BondLoads::remove(std::span<const std::size_t> entries) {
   for (const std::size_t k : entries) {
-    const Beam& beam = beams_[k];
+    Beam& beam = beams_[k];
     if (!beam.active) continue;
-    forEachEntry(beam.a, beam.b, beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending),
-                 [&](Eigen::Index row, Eigen::Index col, double v) { k_.coeffRef(row, col) -= v; });
-    beams_[k].active = false;
-    stale_ = true;
+    const Eigen::Matrix<double, 12, 12> ke = -beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending);
+    k_.block[k_.diagonal[beam.a]] += ke.block<6, 6>(0, 0);
+    k_.block[k_.diagonal[beam.b]] += ke.block<6, 6>(6, 6);
+    k_.block[beam.ab] += ke.block<6, 6>(0, 6);
+    k_.block[beam.ba] += ke.block<6, 6>(6, 0);
+    multigrid_.change(k_, beam.a, beam.a, ke.block<6, 6>(0, 0));
+    multigrid_.change(k_, beam.b, beam.b, ke.block<6, 6>(6, 6));
+    multigrid_.change(k_, beam.a, beam.b, ke.block<6, 6>(0, 6));
+    beam.active = false;
     removed_.push_back(static_cast<std::uint32_t>(k));
   }
 }
 
 bool BondLoads::replay(const BodyInfo& body, const ParticleStore& particles, const ConnectorStore& connectors,
-                       std::span<const ConnectorId> bonds, std::span<const std::uint32_t> removed, std::size_t factorisedAt) {
-  if (!build(body, particles, connectors, bonds) || factorisedAt > removed.size()) return false;
-  for (std::size_t i = 0; i < removed.size(); ++i) {
-    if (removed[i] >= beams_.size() || !beams_[removed[i]].active) return false;
-    const std::size_t entry = removed[i];
-    remove(std::span<const std::size_t>(&entry, 1));
-    if (i + 1 == factorisedAt && !factorise()) return false;
+                       std::span<const ConnectorId> bonds, std::span<const std::uint32_t> removed,
+                       std::span<const double> displacements) {
+  if (!build(body, particles, connectors, bonds) || displacements.size() != static_cast<std::size_t>(u_.size())) return false;
+  for (const std::uint32_t entry : removed) {
+    if (entry >= beams_.size() || !beams_[entry].active) return false;
+    const std::size_t k = entry;
+    remove(std::span<const std::size_t>(&k, 1));
   }
+  u_ = Eigen::Map<const Eigen::VectorXd>(displacements.data(), u_.size());
   return true;
+}
+
+std::size_t BondLoads::bytes() const {
+  return bonds_.size() * sizeof(ConnectorId) + beams_.size() * sizeof(Beam) + removed_.size() * 4 +
+         k_.block.size() * sizeof(Block6) + (k_.column.size() + k_.start.size() + k_.diagonal.size()) * 4 + multigrid_.bytes() +
+         6 * static_cast<std::size_t>(u_.size()) * sizeof(double);
 }
 
 void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleStore& p, std::span<const Vec3> loads,
@@ -188,33 +211,25 @@ void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleSt
     f_.segment<3>(static_cast<Eigen::Index>(6 * i + 3)) =
         -(p.ownInertia[q] * alphaLocal + (p.mass[q] / body.mass) * residualMoment);
   }
-  if (!stale_) {
-    u_ = ldlt_.solve(f_);
-  } else {
-    // conjugate gradients on the frame as it is now, preconditioned by the factorisation of the frame it was
-    // (which differs by the bonds removed since): a few iterations, or a new factorisation where they do not do
-    constexpr int kIterations = 40;
-    constexpr double kTolerance = 1e-10;
-    u_ = ldlt_.solve(f_);
-    r_ = f_ - k_ * u_;
-    const double target = kTolerance * kTolerance * f_.squaredNorm();
-    z_ = ldlt_.solve(r_);
+  // conjugate gradients preconditioned by the multigrid, from the last displacements
+  iterations_ = 0;
+  const double target = kTolerance * kTolerance * f_.squaredNorm();
+  k_.multiply(u_, q_);
+  r_ = f_ - q_;
+  if (r_.squaredNorm() > target) {
+    multigrid_.apply(k_, r_, z_);
     p_ = z_;
     double rz = r_.dot(z_);
-    int it = 0;
-    for (; it < kIterations && r_.squaredNorm() > target; ++it) {
-      q_ = k_ * p_;
+    for (; iterations_ < kMaxIterations && r_.squaredNorm() > target; ++iterations_) {
+      k_.multiply(p_, q_);
       const double step = rz / p_.dot(q_);
       u_ += step * p_;
       r_ -= step * q_;
-      z_ = ldlt_.solve(r_);
-      const double next = r_.dot(z_);
-      p_ = z_ + (next / rz) * p_;
-      rz = next;
-    }
-    if (r_.squaredNorm() > target) {
-      factorise();
-      u_ = ldlt_.solve(f_);
+      multigrid_.apply(k_, r_, z_);
+      // (flexible: Polak-Ribiere's beta, z_new . (r_new - r_old) / (z_old . r_old), r_new - r_old = -step q)
+      const double beta = -step * z_.dot(q_) / rz;
+      rz = r_.dot(z_);
+      p_ = z_ + beta * p_;
     }
   }
   out.resize(beams_.size());
@@ -224,18 +239,20 @@ void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleSt
       out[k] = BondLoad{};
       continue;
     }
-    Vec12 d;
-    d.segment<6>(0) = u_.segment<6>(static_cast<Eigen::Index>(6 * beam.a));
-    d.segment<6>(6) = u_.segment<6>(static_cast<Eigen::Index>(6 * beam.b));
-    const Vec8 strain = strainMap(beam.e, beam.length) * d;
-    const Vec3 psiA = strain.segment<3>(2), psiB = strain.segment<3>(5);
+    // the strains of strainMap(), term by term
+    const auto a = static_cast<Eigen::Index>(6 * beam.a), b = static_cast<Eigen::Index>(6 * beam.b);
+    const Vec3 du = u_.segment<3>(b) - u_.segment<3>(a);
+    const Vec3 ta = u_.segment<3>(a + 3), tb = u_.segment<3>(b + 3);
+    const Vec3 chord = beam.e.cross(du) / beam.length;
+    const double stretch = beam.e.dot(du), twist = beam.e.dot(tb - ta);
+    const Vec3 psiA = ta - beam.e * beam.e.dot(ta) - chord, psiB = tb - beam.e * beam.e.dot(tb) - chord;
     const Vec3 ma = beam.bending * (4.0 * psiA + 2.0 * psiB), mb = beam.bending * (2.0 * psiA + 4.0 * psiB);
     BondLoad& l = out[k];
-    l.axial = beam.axial * strain[0];
-    l.torsion = std::abs(beam.torsion * strain[1]);
+    l.axial = beam.axial * stretch;
+    l.torsion = std::abs(beam.torsion * twist);
     l.bending = std::max(ma.norm(), mb.norm());
     l.shear = (ma + mb).norm() / beam.length;
-    l.energy = 0.5 * (beam.axial * strain[0] * strain[0] + beam.torsion * strain[1] * strain[1] + psiA.dot(ma) + psiB.dot(mb));
+    l.energy = 0.5 * (beam.axial * stretch * stretch + beam.torsion * twist * twist + psiA.dot(ma) + psiB.dot(mb));
   }
 }
 

@@ -62,6 +62,7 @@ Result<RunSummary> runWorld(World& world, const TrajectoryMeta& meta, const RunO
   RunSummary summary;
   summary.bodies = world.bodies().size();
   summary.particles = world.particles().size();
+  summary.connectors = world.connectors().size();
   summary.energyStart = world.energy();
 
   // The trajectory grows under its partial name and takes its own name only when the run ends well: an

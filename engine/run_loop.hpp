@@ -70,6 +70,7 @@ struct RunSummary {
   std::size_t frames = 0;        ///< frames written
   std::size_t bodies = 0;
   std::size_t particles = 0;
+  std::size_t connectors = 0;    ///< connectors (rods, springs, bonds) at the start, broken or not
   double wallSeconds = 0.0;      ///< the whole loop, output included [s]
   double stepSeconds = 0.0;      ///< inside World::step only [s]
   double stepsPerSecond = 0.0;   ///< steps / stepSeconds

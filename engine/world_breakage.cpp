@@ -231,10 +231,27 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
   const Quat shapeOrientation = bodies_.shapeOrientation(parentId);
   const Vec3 shapeOrigin = bodies_.shapeOrigin(parentId);
   const std::vector<ConnectorId> parentConnectors = bodyConnectors_[parentId.index()];
+  // each part's particles and connectors, in the parent's order, in one pass over each (not one a part)
+  std::vector<std::vector<ParticleId>> partParticles(components);
+  std::vector<std::vector<ConnectorId>> partConnectors(components);
+  {
+    std::vector<std::pair<std::size_t, std::uint32_t>> partOf(parentInfo.particles.size());  // (particle id, part)
+    for (std::size_t i = 0; i < parentInfo.particles.size(); ++i) {
+      partParticles[component[i]].push_back(parentInfo.particles[i]);
+      partOf[i] = {parentInfo.particles[i].index(), component[i]};
+    }
+    std::sort(partOf.begin(), partOf.end());
+    const auto part = [&](ParticleId q) {
+      const auto it = std::lower_bound(partOf.begin(), partOf.end(), std::pair<std::size_t, std::uint32_t>{q.index(), 0u});
+      return it != partOf.end() && it->first == q.index() ? it->second : std::uint32_t{0xffffffffu};
+    };
+    for (const ConnectorId c : parentConnectors) {
+      const std::uint32_t pa = part(connectors_.a[c.index()]);
+      if (pa != 0xffffffffu && pa == part(connectors_.b[c.index()])) partConnectors[pa].push_back(c);
+    }
+  }
   for (std::size_t part = 0; part < components; ++part) {
-    std::vector<ParticleId> ids;
-    for (std::size_t i = 0; i < parentInfo.particles.size(); ++i)
-      if (component[i] == part) ids.push_back(parentInfo.particles[i]);
+    std::vector<ParticleId> ids = std::move(partParticles[part]);
     std::vector<Vec3> x;
     std::vector<double> m, own;
     for (const ParticleId q : ids) {
@@ -278,12 +295,7 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
     state.invInertiaLocal = axes.moments.cwiseInverse();
     updateWorldInertia(state);
     moveParticles(ids, id, mp.centre, axes.rotation);
-    std::vector<std::uint8_t> inPart(particles_.size(), 0);
-    for (const ParticleId q : ids) inPart[q.index()] = 1;
-    std::vector<ConnectorId> connectors;
-    for (const ConnectorId c : parentConnectors)
-      if (inPart[connectors_.a[c.index()].index()] && inPart[connectors_.b[c.index()].index()]) connectors.push_back(c);
-    addRigidBody(state, std::move(info), std::move(connectors));
+    addRigidBody(state, std::move(info), std::move(partConnectors[part]));
     bodies_.info[id.index()].breakable = true;  // (a fragment, whether or not it can break further)
     ++stats_.bodiesCreated;
   }

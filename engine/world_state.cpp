@@ -245,20 +245,20 @@ void World::saveState(StateArchive& a) const {
   std::vector<std::uint32_t> framed;
   std::vector<std::vector<ConnectorId>> frameBonds;
   std::vector<std::uint32_t> removedAll, removedStart{0};
-  std::vector<std::int64_t> factorisedAt;
+  std::vector<double> displacements;
   for (std::size_t i = 0; i < nb; ++i)
     if (const BondLoads* bl = bondLoads_[i].get()) {
       framed.push_back(static_cast<std::uint32_t>(i));
       frameBonds.emplace_back(bl->bonds().begin(), bl->bonds().end());
       removedAll.insert(removedAll.end(), bl->removed().begin(), bl->removed().end());
       removedStart.push_back(static_cast<std::uint32_t>(removedAll.size()));
-      factorisedAt.push_back(static_cast<std::int64_t>(bl->factorisedAt()));
+      displacements.insert(displacements.end(), bl->displacements().begin(), bl->displacements().end());
     }
   a.put("bond_frames/body", std::span<const std::uint32_t>(framed));
   putLists(a, "bond_frames/bonds", frameBonds);
   a.put("bond_frames/removed", std::span<const std::uint32_t>(removedAll));
   a.put("bond_frames/removed_start", std::span<const std::uint32_t>(removedStart));
-  a.put("bond_frames/factorised_at", std::span<const std::int64_t>(factorisedAt));
+  a.put("bond_frames/displacements", std::span<const double>(displacements), 6);
 
   normals_.save(a);
   saveContacts(a, contacts_);
@@ -402,12 +402,13 @@ Status World::restoreState(const StateArchive& archive) {
   const std::vector<std::vector<ConnectorId>> frameBonds = getLists<ConnectorTag>(r, "bond_frames/bonds", framed.size(), nc);
   const std::vector<std::uint32_t> removedAll = r.get<std::uint32_t>("bond_frames/removed");
   const std::vector<std::uint32_t> removedStart = r.get<std::uint32_t>("bond_frames/removed_start", 1, framed.size() + 1);
-  const std::vector<std::int64_t> factorisedAt = r.get<std::int64_t>("bond_frames/factorised_at", 1, framed.size());
+  const std::vector<double> displacements = r.get<double>("bond_frames/displacements", 6);
+  std::vector<std::size_t> displacementStart{0};
   for (std::size_t k = 0; k < framed.size() && r.ok(); ++k) {
     const std::uint32_t b = framed[k];
     bool fits = b < nb && alive[b] && bodyKind[b] == static_cast<std::uint8_t>(BodyKind::Rigid) && (k == 0 || b > framed[k - 1]) &&
-                removedStart[k] <= removedStart[k + 1] && removedStart[k + 1] <= removedAll.size() && factorisedAt[k] >= 0 &&
-                factorisedAt[k] <= static_cast<std::int64_t>(removedStart[k + 1] - removedStart[k]);
+                removedStart[k] <= removedStart[k + 1] && removedStart[k + 1] <= removedAll.size();
+    if (fits) displacementStart.push_back(displacementStart.back() + 6 * members[b].size());
     for (std::size_t j = 0; fits && j < frameBonds[k].size(); ++j) {
       const std::size_t e = frameBonds[k][j].index();
       fits = connectors_.kind[e] == ConnectorKind::Bond && p.body[connectors_.a[e].index()].index() == b && p.body[connectors_.b[e].index()].index() == b;
@@ -416,6 +417,10 @@ Status World::restoreState(const StateArchive& archive) {
   }
   if (r.ok() && (removedStart.empty() || removedStart.front() != 0 || removedStart.back() != removedAll.size()))
     r.fail("the checkpoint's removed bonds do not add up");
+  if (r.ok() && displacementStart.back() != displacements.size())
+    r.fail("the checkpoint's bond frame displacements do not match its frames' particles");
+  for (std::size_t k = 0; k < displacements.size() && r.ok(); ++k)
+    if (!std::isfinite(displacements[k])) r.fail("the checkpoint's bond frame displacements are not finite");
 
   // what the next step starts from: contacts, patches, caches
   ContactSet contacts;
@@ -491,8 +496,9 @@ Status World::restoreState(const StateArchive& archive) {
     if (frame < framed.size() && framed[frame] == id.value) {
       auto loads = std::make_unique<BondLoads>();
       const std::span<const std::uint32_t> removed(removedAll.data() + removedStart[frame], removedStart[frame + 1] - removedStart[frame]);
-      if (!loads->replay(bodies_.info[id.index()], particles_, connectors_, frameBonds[frame], removed,
-                         static_cast<std::size_t>(factorisedAt[frame])))
+      const std::span<const double> u(displacements.data() + displacementStart[frame],
+                                      displacementStart[frame + 1] - displacementStart[frame]);
+      if (!loads->replay(bodies_.info[id.index()], particles_, connectors_, frameBonds[frame], removed, u))
         return Error{"", 0, 0, "checkpoint bond frame " + std::to_string(frame) + " cannot be made again"};
       bondLoads_[id.index()] = std::move(loads);
       breakableRigid_.push_back(id);

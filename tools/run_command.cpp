@@ -257,6 +257,7 @@ int run(const RunArgs& args) {
         .field("frames", s.frames)
         .field("bodies", s.bodies)
         .field("particles", s.particles)
+        .field("connectors", s.connectors)
         .field("wall_seconds", s.wallSeconds)
         .field("step_seconds", s.stepSeconds)
         .field("steps_per_second", s.stepsPerSecond)

@@ -1,0 +1,312 @@
+#include "volpar/dynamics/frame_multigrid.hpp"
+
+#include <algorithm>
+#include <limits>
+
+namespace volpar {
+
+namespace {
+
+constexpr std::uint32_t kFree = 0xffffffffu;
+constexpr std::size_t kMaxLevels = 32;
+
+/// The rigid motion of an aggregate seen from a member at offset d: u = U + Theta x d, theta = Theta.
+Block6 prolongation(const Vec3& d) {
+  Block6 p = Block6::Identity();
+  p.block<3, 3>(0, 3) << 0.0, d.z(), -d.y(), -d.z(), 0.0, d.x(), d.y(), -d.x(), 0.0;  // -[d]x
+  return p;
+}
+
+/// r_i - sum_{j != i} A_ij z_j (columns sorted: those before the diagonal are j < i).
+Vec6 offDiagonalResidual(const BlockMatrix6& a, std::uint32_t i, const Eigen::VectorXd& r, const Eigen::VectorXd& z) {
+  Vec6 s = r.segment<6>(6 * static_cast<Eigen::Index>(i));
+  for (std::uint32_t k = a.start[i]; k < a.diagonal[i]; ++k) s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
+  for (std::uint32_t k = a.diagonal[i] + 1; k < a.start[i + 1]; ++k)
+    s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
+  return s;
+}
+
+}  // namespace
+
+std::uint32_t BlockMatrix6::find(std::uint32_t i, std::uint32_t j) const {
+  const auto first = column.begin() + start[i], last = column.begin() + start[i + 1];
+  return static_cast<std::uint32_t>(std::lower_bound(first, last, j) - column.begin());
+}
+
+void BlockMatrix6::multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
+  const std::size_t n = rows();
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec6 s = Vec6::Zero();
+    for (std::uint32_t k = start[i]; k < start[i + 1]; ++k) s.noalias() += block[k] * x.segment<6>(6 * static_cast<Eigen::Index>(column[k]));
+    y.segment<6>(6 * static_cast<Eigen::Index>(i)) = s;
+  }
+}
+
+void BlockMatrix6::setPattern(const std::vector<std::uint32_t>& neighbourStart, const std::vector<std::uint32_t>& neighbours) {
+  const std::size_t n = neighbourStart.size() - 1;
+  start.assign(n + 1, 0);
+  column.clear();
+  column.reserve(neighbours.size() + n);
+  diagonal.assign(n, 0);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    bool placed = false;
+    for (std::uint32_t k = neighbourStart[i]; k < neighbourStart[i + 1]; ++k) {
+      if (!placed && neighbours[k] > i) {
+        diagonal[i] = static_cast<std::uint32_t>(column.size());
+        column.push_back(i);
+        placed = true;
+      }
+      column.push_back(neighbours[k]);
+    }
+    if (!placed) {
+      diagonal[i] = static_cast<std::uint32_t>(column.size());
+      column.push_back(i);
+    }
+    start[i + 1] = static_cast<std::uint32_t>(column.size());
+  }
+  block.assign(column.size(), Block6::Zero());
+}
+
+void FrameMultigrid::build(const BlockMatrix6& fine, const std::vector<Vec3>& positions) {
+  levels_.clear();
+  levels_.reserve(kMaxLevels);
+  std::vector<Vec3> at = positions, centres;
+  std::vector<std::uint32_t> members, memberStart, mark, neighbourStart, neighbours;
+  std::vector<std::uint32_t> nearStart, near;
+  std::vector<std::uint8_t> rooted;
+  constexpr double kNear = 1.2;  // neighbours within 1.2 x the nearest's distance are near
+  while (levels_.size() < kMaxLevels) {
+    const BlockMatrix6& a = matrixOf(levels_.size(), fine);
+    const auto n = static_cast<std::uint32_t>(a.rows());
+    if (n <= kCoarsest) break;
+    // the graph aggregates follow: each node's nearest neighbours (within kNear of the nearest's distance),
+    // so that an aggregate is a node and the ring around it, not everything a block joins it to
+    nearStart.assign(n + 1, 0);
+    near.clear();
+    for (std::uint32_t i = 0; i < n; ++i) {
+      double nearest = std::numeric_limits<double>::infinity();
+      for (std::uint32_t k = a.start[i]; k < a.start[i + 1]; ++k)
+        if (a.column[k] != i) nearest = std::min(nearest, (at[a.column[k]] - at[i]).squaredNorm());
+      for (std::uint32_t k = a.start[i]; k < a.start[i + 1]; ++k)
+        if (a.column[k] != i && (at[a.column[k]] - at[i]).squaredNorm() <= kNear * kNear * nearest) near.push_back(a.column[k]);
+      nearStart[i + 1] = static_cast<std::uint32_t>(near.size());
+    }
+    // aggregates: (1) a node whose near neighbours are all free, with them; (2) a node left joins the
+    // aggregate of its first near neighbour placed in (1); (3) what is still left, with its free near neighbours
+    std::vector<std::uint32_t> aggregate(n, kFree);
+    rooted.assign(n, 0);
+    std::uint32_t count = 0;
+    for (std::uint32_t i = 0; i < n; ++i) {
+      if (aggregate[i] != kFree) continue;
+      bool free = true;
+      for (std::uint32_t k = nearStart[i]; k < nearStart[i + 1] && free; ++k) free = aggregate[near[k]] == kFree;
+      if (!free) continue;
+      aggregate[i] = count;
+      rooted[i] = 1;
+      for (std::uint32_t k = nearStart[i]; k < nearStart[i + 1]; ++k) {
+        aggregate[near[k]] = count;
+        rooted[near[k]] = 1;
+      }
+      ++count;
+    }
+    for (std::uint32_t i = 0; i < n; ++i) {
+      if (aggregate[i] != kFree) continue;
+      for (std::uint32_t k = nearStart[i]; k < nearStart[i + 1]; ++k)
+        if (rooted[near[k]]) {
+          aggregate[i] = aggregate[near[k]];
+          break;
+        }
+    }
+    for (std::uint32_t i = 0; i < n; ++i) {
+      if (aggregate[i] != kFree) continue;
+      aggregate[i] = count;
+      for (std::uint32_t k = nearStart[i]; k < nearStart[i + 1]; ++k)
+        if (aggregate[near[k]] == kFree) aggregate[near[k]] = count;
+      ++count;
+    }
+    if (count == n) break;  // no node has a neighbour: nothing to coarsen
+    // members of each aggregate, in node order, and the aggregates' centres
+    memberStart.assign(count + 1, 0);
+    for (std::uint32_t i = 0; i < n; ++i) ++memberStart[aggregate[i] + 1];
+    for (std::uint32_t c = 0; c < count; ++c) memberStart[c + 1] += memberStart[c];
+    members.resize(n);
+    {
+      std::vector<std::uint32_t> fill(memberStart.begin(), memberStart.end() - 1);
+      for (std::uint32_t i = 0; i < n; ++i) members[fill[aggregate[i]]++] = i;
+    }
+    centres.assign(count, Vec3::Zero());
+    for (std::uint32_t c = 0; c < count; ++c) {
+      for (std::uint32_t m = memberStart[c]; m < memberStart[c + 1]; ++m) centres[c] += at[members[m]];
+      centres[c] /= static_cast<double>(memberStart[c + 1] - memberStart[c]);
+    }
+    Level level;
+    level.offset.resize(n);
+    for (std::uint32_t i = 0; i < n; ++i) level.offset[i] = at[i] - centres[aggregate[i]];
+    // the coarse pattern: aggregates joined by a block of this level
+    mark.assign(count, kFree);
+    neighbourStart.assign(count + 1, 0);
+    neighbours.clear();
+    for (std::uint32_t c = 0; c < count; ++c) {
+      const std::size_t first = neighbours.size();
+      for (std::uint32_t m = memberStart[c]; m < memberStart[c + 1]; ++m) {
+        const std::uint32_t i = members[m];
+        for (std::uint32_t k = a.start[i]; k < a.start[i + 1]; ++k) {
+          const std::uint32_t d = aggregate[a.column[k]];
+          if (d == c || mark[d] == c) continue;
+          mark[d] = c;
+          neighbours.push_back(d);
+        }
+      }
+      std::sort(neighbours.begin() + static_cast<std::ptrdiff_t>(first), neighbours.end());
+      neighbourStart[c + 1] = static_cast<std::uint32_t>(neighbours.size());
+    }
+    level.coarse.setPattern(neighbourStart, neighbours);
+    // the Galerkin product, block by block
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const Block6 pi = prolongation(level.offset[i]);
+      const std::uint32_t ci = aggregate[i];
+      for (std::uint32_t k = a.start[i]; k < a.start[i + 1]; ++k) {
+        const std::uint32_t j = a.column[k];
+        level.coarse.block[level.coarse.find(ci, aggregate[j])].noalias() += pi.transpose() * a.block[k] * prolongation(level.offset[j]);
+      }
+    }
+    level.aggregate = std::move(aggregate);
+    level.diagonalInverse.resize(n);
+    level.residual.resize(6 * static_cast<Eigen::Index>(n));
+    level.coarseRhs.resize(6 * static_cast<Eigen::Index>(count));
+    level.coarseSolution.resize(6 * static_cast<Eigen::Index>(count));
+    if (!levels_.empty())  // (the finest level takes no K-cycle steps)
+      for (Eigen::VectorXd* v : {&level.krylov.c, &level.krylov.v, &level.krylov.r, &level.krylov.d, &level.krylov.w})
+        v->resize(6 * static_cast<Eigen::Index>(n));
+    levels_.push_back(std::move(level));
+    for (std::uint32_t i = 0; i < n; ++i) refreshDiagonalInverse(levels_.size() - 1, a, i);
+    at.swap(centres);
+  }
+  coarsestStale_ = true;
+}
+
+void FrameMultigrid::refreshDiagonalInverse(std::size_t level, const BlockMatrix6& a, std::uint32_t node) {
+  levels_[level].diagonalInverse[node] = a.block[a.diagonal[node]].ldlt().solve(Block6::Identity());
+}
+
+void FrameMultigrid::change(const BlockMatrix6& fine, std::uint32_t i, std::uint32_t j, const Block6& delta) {
+  Block6 d = delta;
+  for (std::size_t l = 0; l < levels_.size(); ++l) {
+    Level& level = levels_[l];
+    if (i == j) refreshDiagonalInverse(l, matrixOf(l, fine), i);
+    const std::uint32_t ci = level.aggregate[i], cj = level.aggregate[j];
+    Block6 dc = prolongation(level.offset[i]).transpose() * d * prolongation(level.offset[j]);
+    if (ci == cj) {
+      if (i != j) dc += dc.transpose().eval();
+      level.coarse.block[level.coarse.diagonal[ci]] += dc;
+    } else {
+      level.coarse.block[level.coarse.find(ci, cj)] += dc;
+      level.coarse.block[level.coarse.find(cj, ci)] += dc.transpose();
+    }
+    i = ci;
+    j = cj;
+    d = dc;
+  }
+  coarsestStale_ = true;
+}
+
+void FrameMultigrid::factoriseCoarsest(const BlockMatrix6& fine) {
+  const BlockMatrix6& a = matrixOf(levels_.size(), fine);
+  const auto n = static_cast<Eigen::Index>(a.rows());
+  coarsestDense_.setZero(6 * n, 6 * n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (std::uint32_t k = a.start[static_cast<std::size_t>(i)]; k < a.start[static_cast<std::size_t>(i) + 1]; ++k)
+      coarsestDense_.block<6, 6>(6 * i, 6 * static_cast<Eigen::Index>(a.column[k])) = a.block[k];
+  coarsestLdlt_.compute(coarsestDense_);
+  coarsestStale_ = false;
+}
+
+void FrameMultigrid::apply(const BlockMatrix6& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+  if (coarsestStale_) factoriseCoarsest(fine);
+  cycle(0, fine, r, z);
+}
+
+void FrameMultigrid::coarseCorrection(std::size_t l, const BlockMatrix6& a, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  if (l == levels_.size()) {
+    cycle(l, a, b, x);
+    return;
+  }
+  // the K-cycle (Notay and Vassilevski 2008): up to two steps of flexible conjugate gradients on this level,
+  // each preconditioned by this level's cycle; the second only where the first left more than a quarter of b
+  Krylov& k = levels_[l].krylov;
+  cycle(l, a, b, k.c);
+  a.multiply(k.c, k.v);
+  const double rho1 = k.c.dot(k.v), alpha1 = k.c.dot(b);
+  if (!(rho1 > 0.0)) {
+    x = k.c;
+    return;
+  }
+  k.r = b - (alpha1 / rho1) * k.v;
+  if (k.r.squaredNorm() <= 0.0625 * b.squaredNorm()) {
+    x = (alpha1 / rho1) * k.c;
+    return;
+  }
+  cycle(l, a, k.r, k.d);
+  a.multiply(k.d, k.w);
+  const double gamma = k.d.dot(k.v), beta = k.d.dot(k.w), alpha2 = k.d.dot(k.r);
+  const double rho2 = beta - gamma * gamma / rho1;
+  if (!(rho2 > 0.0)) {
+    x = (alpha1 / rho1) * k.c;
+    return;
+  }
+  x = (alpha1 / rho1 - gamma * alpha2 / (rho1 * rho2)) * k.c + (alpha2 / rho2) * k.d;
+}
+
+void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+  if (l == levels_.size()) {
+    z = coarsestLdlt_.solve(r);
+    return;
+  }
+  Level& level = levels_[l];
+  const auto n = static_cast<std::uint32_t>(a.rows());
+  // the forward sweep from zero: z_i = D_i^-1 (r_i - sum_{j < i} A_ij z_j)
+  for (std::uint32_t i = 0; i < n; ++i) {
+    Vec6 s = r.segment<6>(6 * static_cast<Eigen::Index>(i));
+    for (std::uint32_t k = a.start[i]; k < a.diagonal[i]; ++k)
+      s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
+    z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * s;
+  }
+  // its residual r - A z: what is left of each row is - sum_{j > i} A_ij z_j (the sweep zeroed the rest)
+  for (std::uint32_t i = 0; i < n; ++i) {
+    Vec6 s = Vec6::Zero();
+    for (std::uint32_t k = a.diagonal[i] + 1; k < a.start[i + 1]; ++k)
+      s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
+    level.residual.segment<6>(6 * static_cast<Eigen::Index>(i)) = s;
+  }
+  // restriction: each aggregate's force and moment about its centre
+  level.coarseRhs.setZero();
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const auto c = 6 * static_cast<Eigen::Index>(level.aggregate[i]);
+    const Vec3 f = level.residual.segment<3>(6 * static_cast<Eigen::Index>(i));
+    level.coarseRhs.segment<3>(c) += f;
+    level.coarseRhs.segment<3>(c + 3) += level.residual.segment<3>(6 * static_cast<Eigen::Index>(i) + 3) + level.offset[i].cross(f);
+  }
+  coarseCorrection(l + 1, level.coarse, level.coarseRhs, level.coarseSolution);
+  // prolongation: each node moves with its aggregate's rigid motion
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const auto c = 6 * static_cast<Eigen::Index>(level.aggregate[i]);
+    const Vec3 turn = level.coarseSolution.segment<3>(c + 3);
+    z.segment<3>(6 * static_cast<Eigen::Index>(i)) += level.coarseSolution.segment<3>(c) + turn.cross(level.offset[i]);
+    z.segment<3>(6 * static_cast<Eigen::Index>(i) + 3) += turn;
+  }
+  for (std::uint32_t i = n; i-- > 0;)
+    z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * offDiagonalResidual(a, i, r, z);
+}
+
+std::size_t FrameMultigrid::bytes() const {
+  std::size_t b = static_cast<std::size_t>(coarsestDense_.size()) * sizeof(double) * 2;
+  for (const Level& l : levels_)
+    b += l.aggregate.size() * 4 + l.offset.size() * sizeof(Vec3) + l.diagonalInverse.size() * sizeof(Block6) +
+         l.coarse.block.size() * sizeof(Block6) + l.coarse.column.size() * 4 + l.coarse.start.size() * 4 +
+         l.coarse.diagonal.size() * 4 +
+         static_cast<std::size_t>(l.residual.size() + l.coarseRhs.size() + l.coarseSolution.size() + l.krylov.c.size() +
+                                  l.krylov.v.size() + l.krylov.r.size() + l.krylov.d.size() + l.krylov.w.size()) * 8;
+  return b;
+}
+
+}  // namespace volpar

@@ -1,0 +1,105 @@
+#pragma once
+// A multigrid preconditioner for the stiffness of a frame whose nodes each have three displacements and three
+// rotations (a bonded body's frame of beams, bond_loads.hpp).
+//
+// Aggregation multigrid (Vanek, Mandel and Brezina 1996, without smoothing of the prolongation): the nodes of
+// a level are gathered into aggregates (a node and its free neighbours, greedily in node order), each
+// aggregate is one node of the next level at the mean of its members' positions, and a coarse node's six
+// freedoms are the aggregate's rigid motion: a member at offset d from the centre moves by U + Theta x d and
+// turns by Theta. The coarse stiffness is the Galerkin product P^T K P, so the rigid motions of the whole
+// body, which a frame's stiffness barely resists, are represented exactly on every level. The coarsest
+// level (at most kCoarsest nodes) is solved directly. A V-cycle smooths with one symmetric block
+// Gauss-Seidel sweep (forward before the coarse correction, backward after), so it is a symmetric positive
+// definite operator; each coarse level is solved by up to two steps of flexible conjugate gradients
+// preconditioned by its own cycle (the K-cycle of Notay and Vassilevski, 2008), which keeps the iterations
+// of the outer (flexible) conjugate gradients from growing with the number of levels. The preconditioner is
+// then not exactly linear, so the outer method must be flexible (BondLoads::solve).
+//
+// When a beam leaves the frame, its stiffness leaves each level's matrix in place: with one coarse node per
+// fine node, the change of a fine block (a, b) changes only the coarse block (A, B) of the nodes' aggregates,
+// so removing k beams costs O(k times the levels), not a rebuild. The aggregates stay as they were built;
+// where a crack runs through one, the coarse space couples the two sides more than the frame does, which
+// slows convergence a little there and changes no result (the preconditioner stays symmetric and positive
+// definite).
+//
+// Costs: building is linear in the blocks of the fine matrix (each level has about a tenth of the nodes of
+// the one below it in a three-dimensional lattice); one V-cycle costs about three products with the fine
+// matrix.
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "volpar/engine/core/types.hpp"
+
+namespace volpar {
+
+using Block6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+/// A symmetric matrix of 6 x 6 blocks in compressed rows; every row holds its diagonal block, columns sorted.
+struct BlockMatrix6 {
+  std::vector<std::uint32_t> start{0};  // row i's blocks: [start[i], start[i + 1])
+  std::vector<std::uint32_t> column;
+  std::vector<Block6> block;
+  std::vector<std::uint32_t> diagonal;  // per row, the index of its diagonal block
+
+  [[nodiscard]] std::size_t rows() const { return start.size() - 1; }
+  /// The index of block (i, j); it must be in the pattern.
+  [[nodiscard]] std::uint32_t find(std::uint32_t i, std::uint32_t j) const;
+  /// y = A x (6 entries a row).
+  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  /// The pattern of rows whose off-diagonal columns are `neighbours` (CSR: neighbourStart, sorted, no
+  /// duplicates, no diagonal), every block zero.
+  void setPattern(const std::vector<std::uint32_t>& neighbourStart, const std::vector<std::uint32_t>& neighbours);
+};
+
+class FrameMultigrid {
+ public:
+  /// The hierarchy of `fine` (a frame's stiffness, kept by the caller, which tells of every change through
+  /// change()), whose nodes lie at `positions`.
+  void build(const BlockMatrix6& fine, const std::vector<Vec3>& positions);
+  /// Tells the hierarchy that block (i, j) of the fine matrix changed by `delta` (and block (j, i) by its
+  /// transpose, where i != j): the coarse levels change with it.
+  void change(const BlockMatrix6& fine, std::uint32_t i, std::uint32_t j, const Block6& delta);
+  /// z = B r, B the V-cycle: an approximation of the fine matrix's inverse, symmetric positive definite.
+  void apply(const BlockMatrix6& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z);
+
+  [[nodiscard]] std::size_t levels() const { return levels_.size() + 1; }
+  /// Bytes the hierarchy holds (its coarse matrices and aggregates).
+  [[nodiscard]] std::size_t bytes() const;
+
+  static constexpr std::size_t kCoarsest = 32;  // nodes of a level solved directly
+
+ private:
+  /// The vectors of a K-cycle's steps on one level.
+  struct Krylov {
+    Eigen::VectorXd c, v, r, d, w;
+  };
+  /// One level below the coarsest: its nodes' aggregates, their offsets, and the next level's matrix.
+  struct Level {
+    std::vector<std::uint32_t> aggregate;   // node -> node of the next level
+    std::vector<Vec3> offset;               // node's position less its aggregate's centre
+    std::vector<Block6> diagonalInverse;    // of this level's diagonal blocks (the smoother's)
+    BlockMatrix6 coarse;                    // the next level's matrix (unused below the coarsest: coarsest_)
+    Eigen::VectorXd residual, coarseRhs, coarseSolution;
+    Krylov krylov;  // (levels above the finest: the K-cycle's steps on this level)
+  };
+  /// z = the cycle of `level` on r: smoothing, the coarse correction, smoothing (the direct solve, at the coarsest).
+  void cycle(std::size_t level, const BlockMatrix6& a, const Eigen::VectorXd& r, Eigen::VectorXd& z);
+  /// x = an approximate solution of level `level`'s a x = b: the K-cycle (or the direct solve, at the coarsest).
+  void coarseCorrection(std::size_t level, const BlockMatrix6& a, const Eigen::VectorXd& b, Eigen::VectorXd& x);
+  void refreshDiagonalInverse(std::size_t level, const BlockMatrix6& a, std::uint32_t node);
+  void factoriseCoarsest(const BlockMatrix6& fine);
+  const BlockMatrix6& matrixOf(std::size_t level, const BlockMatrix6& fine) const {
+    return level == 0 ? fine : levels_[level - 1].coarse;
+  }
+
+  std::vector<Level> levels_;  // levels_[l] smooths on level l's matrix and restricts to level l + 1
+  Eigen::MatrixXd coarsestDense_;
+  Eigen::LDLT<Eigen::MatrixXd> coarsestLdlt_;
+  bool coarsestStale_ = true;
+};
+
+}  // namespace volpar
