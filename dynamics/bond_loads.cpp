@@ -196,7 +196,7 @@ std::size_t BondLoads::bytes() const {
 }
 
 void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleStore& p, std::span<const Vec3> loads,
-                      std::vector<BondLoad>& out) {
+                      std::vector<BondLoad>& out, ThreadPool* pool) {
   const std::size_t n = body.particles.size();
   const Mat3 r = s.orientation.toRotationMatrix();
   const RigidAcceleration motion = rigidAcceleration(s, body, p, loads);
@@ -211,24 +211,26 @@ void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleSt
     f_.segment<3>(static_cast<Eigen::Index>(6 * i + 3)) =
         -(p.ownInertia[q] * alphaLocal + (p.mass[q] / body.mass) * residualMoment);
   }
-  // conjugate gradients preconditioned by the multigrid, from the last displacements
+  // flexible conjugate gradients preconditioned by the multigrid, from the last displacements (every sum in
+  // fixed chunks: the same bits for any number of threads)
   iterations_ = 0;
-  const double target = kTolerance * kTolerance * f_.squaredNorm();
-  k_.multiply(u_, q_);
+  const auto dot = [&](const Eigen::VectorXd& x, const Eigen::VectorXd& y) { return chunkedDot(x, y, pool, partial_); };
+  const double target = kTolerance * kTolerance * dot(f_, f_);
+  k_.multiply(u_, q_, pool);
   r_ = f_ - q_;
-  if (r_.squaredNorm() > target) {
-    multigrid_.apply(k_, r_, z_);
+  if (dot(r_, r_) > target) {
+    multigrid_.apply(k_, r_, z_, pool);
     p_ = z_;
-    double rz = r_.dot(z_);
-    for (; iterations_ < kMaxIterations && r_.squaredNorm() > target; ++iterations_) {
-      k_.multiply(p_, q_);
-      const double step = rz / p_.dot(q_);
+    double rz = dot(r_, z_);
+    for (; iterations_ < kMaxIterations && dot(r_, r_) > target; ++iterations_) {
+      k_.multiply(p_, q_, pool);
+      const double step = rz / dot(p_, q_);
       u_ += step * p_;
       r_ -= step * q_;
-      multigrid_.apply(k_, r_, z_);
+      multigrid_.apply(k_, r_, z_, pool);
       // (flexible: Polak-Ribiere's beta, z_new . (r_new - r_old) / (z_old . r_old), r_new - r_old = -step q)
-      const double beta = -step * z_.dot(q_) / rz;
-      rz = r_.dot(z_);
+      const double beta = -step * dot(z_, q_) / rz;
+      rz = dot(r_, z_);
       p_ = z_ + beta * p_;
     }
   }

@@ -74,8 +74,10 @@ class BondLoads {
 
   /// The loads of the bonds given to build(), for world loads [N] on the particles (indexed by particle id)
   /// over a step of the body in state `s`.
+  /// `pool`, where given, shares the work of a large frame among its workers; the loads are the same bits for
+  /// any number of threads.
   void solve(const BodyState& s, const BodyInfo& body, const ParticleStore& particles, std::span<const Vec3> loads,
-             std::vector<BondLoad>& out);
+             std::vector<BondLoad>& out, ThreadPool* pool = nullptr);
 
   /// Takes broken bonds (entries of bonds()) out of the frame; their loads are zero from then on.
   void remove(std::span<const std::size_t> entries);
@@ -113,6 +115,7 @@ class BondLoads {
   FrameMultigrid multigrid_;  // of k_, changed with it
   std::vector<std::uint32_t> removed_;  // entries removed since build(), in order
   Eigen::VectorXd f_, u_, r_, z_, p_, q_;
+  std::vector<double> partial_;  // (chunkedDot's)
   int iterations_ = 0;
 };
 

@@ -26,20 +26,45 @@ Vec6 offDiagonalResidual(const BlockMatrix6& a, std::uint32_t i, const Eigen::Ve
   return s;
 }
 
+/// f(begin, end) over [0, n), shared among the pool's workers where there are enough rows (each row's
+/// result never depends on which worker computes it).
+template <class F>
+void forRows(ThreadPool* pool, std::size_t n, F&& f) {
+  if (pool && pool->worthSharing(n, FrameMultigrid::kRowsPerWorker)) pool->run(n, [&](int, std::size_t b, std::size_t e) { f(b, e); });
+  else f(0, n);
+}
+
 }  // namespace
+
+double chunkedDot(const Eigen::VectorXd& a, const Eigen::VectorXd& b, ThreadPool* pool, std::vector<double>& partial) {
+  const auto n = static_cast<std::size_t>(a.size());
+  const std::size_t chunks = (n + kDotChunk - 1) / kDotChunk;
+  partial.resize(chunks);
+  forRows(pool, chunks, [&](std::size_t from, std::size_t to) {
+    for (std::size_t c = from; c < to; ++c) {
+      const auto begin = static_cast<Eigen::Index>(c * kDotChunk);
+      const auto size = static_cast<Eigen::Index>(std::min(kDotChunk, n - c * kDotChunk));
+      partial[c] = a.segment(begin, size).dot(b.segment(begin, size));
+    }
+  });
+  double sum = 0.0;
+  for (const double p : partial) sum += p;
+  return sum;
+}
 
 std::uint32_t BlockMatrix6::find(std::uint32_t i, std::uint32_t j) const {
   const auto first = column.begin() + start[i], last = column.begin() + start[i + 1];
   return static_cast<std::uint32_t>(std::lower_bound(first, last, j) - column.begin());
 }
 
-void BlockMatrix6::multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
-  const std::size_t n = rows();
-  for (std::size_t i = 0; i < n; ++i) {
-    Vec6 s = Vec6::Zero();
-    for (std::uint32_t k = start[i]; k < start[i + 1]; ++k) s.noalias() += block[k] * x.segment<6>(6 * static_cast<Eigen::Index>(column[k]));
-    y.segment<6>(6 * static_cast<Eigen::Index>(i)) = s;
-  }
+void BlockMatrix6::multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, ThreadPool* pool) const {
+  forRows(pool, rows(), [&](std::size_t from, std::size_t to) {
+    for (std::size_t i = from; i < to; ++i) {
+      Vec6 s = Vec6::Zero();
+      for (std::uint32_t k = start[i]; k < start[i + 1]; ++k) s.noalias() += block[k] * x.segment<6>(6 * static_cast<Eigen::Index>(column[k]));
+      y.segment<6>(6 * static_cast<Eigen::Index>(i)) = s;
+    }
+  });
 }
 
 void BlockMatrix6::setPattern(const std::vector<std::uint32_t>& neighbourStart, const std::vector<std::uint32_t>& neighbours) {
@@ -170,6 +195,8 @@ void FrameMultigrid::build(const BlockMatrix6& fine, const std::vector<Vec3>& po
         level.coarse.block[level.coarse.find(ci, aggregate[j])].noalias() += pi.transpose() * a.block[k] * prolongation(level.offset[j]);
       }
     }
+    level.memberStart = memberStart;
+    level.members = members;
     level.aggregate = std::move(aggregate);
     level.diagonalInverse.resize(n);
     level.residual.resize(6 * static_cast<Eigen::Index>(n));
@@ -221,9 +248,11 @@ void FrameMultigrid::factoriseCoarsest(const BlockMatrix6& fine) {
   coarsestStale_ = false;
 }
 
-void FrameMultigrid::apply(const BlockMatrix6& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+void FrameMultigrid::apply(const BlockMatrix6& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z, ThreadPool* pool) {
   if (coarsestStale_) factoriseCoarsest(fine);
+  pool_ = pool;
   cycle(0, fine, r, z);
+  pool_ = nullptr;
 }
 
 void FrameMultigrid::coarseCorrection(std::size_t l, const BlockMatrix6& a, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
@@ -235,20 +264,21 @@ void FrameMultigrid::coarseCorrection(std::size_t l, const BlockMatrix6& a, cons
   // each preconditioned by this level's cycle; the second only where the first left more than a quarter of b
   Krylov& k = levels_[l].krylov;
   cycle(l, a, b, k.c);
-  a.multiply(k.c, k.v);
-  const double rho1 = k.c.dot(k.v), alpha1 = k.c.dot(b);
+  a.multiply(k.c, k.v, pool_);
+  const double rho1 = chunkedDot(k.c, k.v, pool_, partial_), alpha1 = chunkedDot(k.c, b, pool_, partial_);
   if (!(rho1 > 0.0)) {
     x = k.c;
     return;
   }
   k.r = b - (alpha1 / rho1) * k.v;
-  if (k.r.squaredNorm() <= 0.0625 * b.squaredNorm()) {
+  if (chunkedDot(k.r, k.r, pool_, partial_) <= 0.0625 * chunkedDot(b, b, pool_, partial_)) {
     x = (alpha1 / rho1) * k.c;
     return;
   }
   cycle(l, a, k.r, k.d);
-  a.multiply(k.d, k.w);
-  const double gamma = k.d.dot(k.v), beta = k.d.dot(k.w), alpha2 = k.d.dot(k.r);
+  a.multiply(k.d, k.w, pool_);
+  const double gamma = chunkedDot(k.d, k.v, pool_, partial_), beta = chunkedDot(k.d, k.w, pool_, partial_),
+               alpha2 = chunkedDot(k.d, k.r, pool_, partial_);
   const double rho2 = beta - gamma * gamma / rho1;
   if (!(rho2 > 0.0)) {
     x = (alpha1 / rho1) * k.c;
@@ -264,7 +294,8 @@ void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::Ve
   }
   Level& level = levels_[l];
   const auto n = static_cast<std::uint32_t>(a.rows());
-  // the forward sweep from zero: z_i = D_i^-1 (r_i - sum_{j < i} A_ij z_j)
+  // the forward sweep from zero, in node order: z_i = D_i^-1 (r_i - sum_{j < i} A_ij z_j) (one thread: a
+  // sweep's result depends on its order, and the order is what keeps the same bits for any number of threads)
   for (std::uint32_t i = 0; i < n; ++i) {
     Vec6 s = r.segment<6>(6 * static_cast<Eigen::Index>(i));
     for (std::uint32_t k = a.start[i]; k < a.diagonal[i]; ++k)
@@ -272,28 +303,37 @@ void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::Ve
     z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * s;
   }
   // its residual r - A z: what is left of each row is - sum_{j > i} A_ij z_j (the sweep zeroed the rest)
-  for (std::uint32_t i = 0; i < n; ++i) {
-    Vec6 s = Vec6::Zero();
-    for (std::uint32_t k = a.diagonal[i] + 1; k < a.start[i + 1]; ++k)
-      s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
-    level.residual.segment<6>(6 * static_cast<Eigen::Index>(i)) = s;
-  }
-  // restriction: each aggregate's force and moment about its centre
-  level.coarseRhs.setZero();
-  for (std::uint32_t i = 0; i < n; ++i) {
-    const auto c = 6 * static_cast<Eigen::Index>(level.aggregate[i]);
-    const Vec3 f = level.residual.segment<3>(6 * static_cast<Eigen::Index>(i));
-    level.coarseRhs.segment<3>(c) += f;
-    level.coarseRhs.segment<3>(c + 3) += level.residual.segment<3>(6 * static_cast<Eigen::Index>(i) + 3) + level.offset[i].cross(f);
-  }
+  forRows(pool_, n, [&](std::size_t from, std::size_t to) {
+    for (std::size_t i = from; i < to; ++i) {
+      Vec6 s = Vec6::Zero();
+      for (std::uint32_t k = a.diagonal[i] + 1; k < a.start[i + 1]; ++k)
+        s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
+      level.residual.segment<6>(6 * static_cast<Eigen::Index>(i)) = s;
+    }
+  });
+  // restriction: each aggregate's force and moment about its centre, its members in node order
+  forRows(pool_, level.memberStart.size() - 1, [&](std::size_t from, std::size_t to) {
+    for (std::size_t c = from; c < to; ++c) {
+      Vec6 sum = Vec6::Zero();
+      for (std::uint32_t m = level.memberStart[c]; m < level.memberStart[c + 1]; ++m) {
+        const std::uint32_t i = level.members[m];
+        const Vec3 f = level.residual.segment<3>(6 * static_cast<Eigen::Index>(i));
+        sum.head<3>() += f;
+        sum.tail<3>() += level.residual.segment<3>(6 * static_cast<Eigen::Index>(i) + 3) + level.offset[i].cross(f);
+      }
+      level.coarseRhs.segment<6>(6 * static_cast<Eigen::Index>(c)) = sum;
+    }
+  });
   coarseCorrection(l + 1, level.coarse, level.coarseRhs, level.coarseSolution);
   // prolongation: each node moves with its aggregate's rigid motion
-  for (std::uint32_t i = 0; i < n; ++i) {
-    const auto c = 6 * static_cast<Eigen::Index>(level.aggregate[i]);
-    const Vec3 turn = level.coarseSolution.segment<3>(c + 3);
-    z.segment<3>(6 * static_cast<Eigen::Index>(i)) += level.coarseSolution.segment<3>(c) + turn.cross(level.offset[i]);
-    z.segment<3>(6 * static_cast<Eigen::Index>(i) + 3) += turn;
-  }
+  forRows(pool_, n, [&](std::size_t from, std::size_t to) {
+    for (std::size_t i = from; i < to; ++i) {
+      const auto c = 6 * static_cast<Eigen::Index>(level.aggregate[i]);
+      const Vec3 turn = level.coarseSolution.segment<3>(c + 3);
+      z.segment<3>(6 * static_cast<Eigen::Index>(i)) += level.coarseSolution.segment<3>(c) + turn.cross(level.offset[i]);
+      z.segment<3>(6 * static_cast<Eigen::Index>(i) + 3) += turn;
+    }
+  });
   for (std::uint32_t i = n; i-- > 0;)
     z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * offDiagonalResidual(a, i, r, z);
 }
@@ -303,7 +343,7 @@ std::size_t FrameMultigrid::bytes() const {
   for (const Level& l : levels_)
     b += l.aggregate.size() * 4 + l.offset.size() * sizeof(Vec3) + l.diagonalInverse.size() * sizeof(Block6) +
          l.coarse.block.size() * sizeof(Block6) + l.coarse.column.size() * 4 + l.coarse.start.size() * 4 +
-         l.coarse.diagonal.size() * 4 +
+         l.coarse.diagonal.size() * 4 + (l.memberStart.size() + l.members.size()) * 4 +
          static_cast<std::size_t>(l.residual.size() + l.coarseRhs.size() + l.coarseSolution.size() + l.krylov.c.size() +
                                   l.krylov.v.size() + l.krylov.r.size() + l.krylov.d.size() + l.krylov.w.size()) * 8;
   return b;

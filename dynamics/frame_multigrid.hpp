@@ -8,9 +8,10 @@
 // freedoms are the aggregate's rigid motion: a member at offset d from the centre moves by U + Theta x d and
 // turns by Theta. The coarse stiffness is the Galerkin product P^T K P, so the rigid motions of the whole
 // body, which a frame's stiffness barely resists, are represented exactly on every level. The coarsest
-// level (at most kCoarsest nodes) is solved directly. A V-cycle smooths with one symmetric block
-// Gauss-Seidel sweep (forward before the coarse correction, backward after), so it is a symmetric positive
-// definite operator; each coarse level is solved by up to two steps of flexible conjugate gradients
+// level (at most kCoarsest nodes) is solved directly. A cycle smooths with one symmetric block Gauss-Seidel
+// sweep in node order (forward before the coarse correction, backward after; on one thread, so that the
+// result is the same bits for any number: the products, restrictions, prolongations and sums around them
+// are shared among threads); each coarse level is solved by up to two steps of flexible conjugate gradients
 // preconditioned by its own cycle (the K-cycle of Notay and Vassilevski, 2008), which keeps the iterations
 // of the outer (flexible) conjugate gradients from growing with the number of levels. The preconditioner is
 // then not exactly linear, so the outer method must be flexible (BondLoads::solve).
@@ -23,14 +24,15 @@
 // definite).
 //
 // Costs: building is linear in the blocks of the fine matrix (each level has about a tenth of the nodes of
-// the one below it in a three-dimensional lattice); one V-cycle costs about three products with the fine
-// matrix.
+// the one below it in a three-dimensional lattice); one cycle costs about two products with the fine matrix
+// and, with its K-cycle steps, about as much again on the coarse levels.
 
 #include <cstdint>
 #include <vector>
 
 #include <Eigen/Dense>
 
+#include "volpar/engine/core/thread_pool.hpp"
 #include "volpar/engine/core/types.hpp"
 
 namespace volpar {
@@ -48,12 +50,17 @@ struct BlockMatrix6 {
   [[nodiscard]] std::size_t rows() const { return start.size() - 1; }
   /// The index of block (i, j); it must be in the pattern.
   [[nodiscard]] std::uint32_t find(std::uint32_t i, std::uint32_t j) const;
-  /// y = A x (6 entries a row).
-  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  /// y = A x (6 entries a row), the rows shared among `pool`'s workers where it is given.
+  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, ThreadPool* pool = nullptr) const;
   /// The pattern of rows whose off-diagonal columns are `neighbours` (CSR: neighbourStart, sorted, no
   /// duplicates, no diagonal), every block zero.
   void setPattern(const std::vector<std::uint32_t>& neighbourStart, const std::vector<std::uint32_t>& neighbours);
 };
+
+/// a . b summed in chunks of kDotChunk entries, the chunks' sums added in order: the same bits for any number
+/// of threads (`pool`, where given, shares the chunks). `partial` is scratch.
+inline constexpr std::size_t kDotChunk = 3072;
+double chunkedDot(const Eigen::VectorXd& a, const Eigen::VectorXd& b, ThreadPool* pool, std::vector<double>& partial);
 
 class FrameMultigrid {
  public:
@@ -63,14 +70,16 @@ class FrameMultigrid {
   /// Tells the hierarchy that block (i, j) of the fine matrix changed by `delta` (and block (j, i) by its
   /// transpose, where i != j): the coarse levels change with it.
   void change(const BlockMatrix6& fine, std::uint32_t i, std::uint32_t j, const Block6& delta);
-  /// z = B r, B the V-cycle: an approximation of the fine matrix's inverse, symmetric positive definite.
-  void apply(const BlockMatrix6& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z);
+  /// z = B r, B the cycle: an approximation of the fine matrix's inverse. `pool`, where given, shares the
+  /// work of each level of more than kRowsPerWorker rows a worker; z is the same bits for any number of threads.
+  void apply(const BlockMatrix6& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z, ThreadPool* pool = nullptr);
 
   [[nodiscard]] std::size_t levels() const { return levels_.size() + 1; }
   /// Bytes the hierarchy holds (its coarse matrices and aggregates).
   [[nodiscard]] std::size_t bytes() const;
 
-  static constexpr std::size_t kCoarsest = 32;  // nodes of a level solved directly
+  static constexpr std::size_t kCoarsest = 32;        // nodes of a level solved directly
+  static constexpr std::size_t kRowsPerWorker = 1024;  // rows worth handing to a worker
 
  private:
   /// The vectors of a K-cycle's steps on one level.
@@ -82,6 +91,7 @@ class FrameMultigrid {
     std::vector<std::uint32_t> aggregate;   // node -> node of the next level
     std::vector<Vec3> offset;               // node's position less its aggregate's centre
     std::vector<Block6> diagonalInverse;    // of this level's diagonal blocks (the smoother's)
+    std::vector<std::uint32_t> memberStart, members;     // the nodes of each aggregate, in node order
     BlockMatrix6 coarse;                    // the next level's matrix (unused below the coarsest: coarsest_)
     Eigen::VectorXd residual, coarseRhs, coarseSolution;
     Krylov krylov;  // (levels above the finest: the K-cycle's steps on this level)
@@ -100,6 +110,8 @@ class FrameMultigrid {
   Eigen::MatrixXd coarsestDense_;
   Eigen::LDLT<Eigen::MatrixXd> coarsestLdlt_;
   bool coarsestStale_ = true;
+  ThreadPool* pool_ = nullptr;  // (during apply())
+  std::vector<double> partial_;  // chunkedDot's scratch
 };
 
 }  // namespace volpar

@@ -87,7 +87,7 @@ void World::applyBreakage() {
         worst = std::max(worst, ratio);
       };
       if (BondLoads* bl = bondLoads_[id.index()].get()) {
-        bl->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, bondLoadScratch_);
+        bl->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, bondLoadScratch_, pool_.get());
         const std::span<const ConnectorId> bonds = bl->bonds();
         for (std::size_t r = 0; r < bonds.size(); ++r) {
           const std::size_t c = bonds[r].index();

@@ -8,7 +8,7 @@ the breakage stage's microseconds per particle-step, and the most memory the pro
     tools/scripts/fracture_cost.py build/release/tools/volpar [--threads 1] [--steps 120] [--fine] [--slab]
 
 wall_break is run as it is and with its wall filled at 0.025 m (a copy of the scene in a temporary folder);
---fine adds wall_break_fine (0.0125 m), --slab adds slab_impact.
+--fine adds wall_break_fine (0.0125 m), --slab adds slab_impact (its first --slab-steps steps).
 """
 import argparse
 import json
@@ -40,6 +40,7 @@ def main():
     parser.add_argument("--steps", type=int, default=120)
     parser.add_argument("--fine", action="store_true", help="add wall_break_fine (20 480 particles)")
     parser.add_argument("--slab", action="store_true", help="add slab_impact (about 100 000 particles)")
+    parser.add_argument("--slab-steps", type=int, default=2, help="steps of slab_impact (default 2: before the impact)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         scenes = [("wall_break", os.path.join(ROOT, "scenes/examples/wall_break.yaml")),
@@ -51,8 +52,9 @@ def main():
         print("| scene | particles | bonds | breakage, ms/step | rest of the step, ms/step | breakage, us/particle-step | memory, MiB |")
         print("|---|---:|---:|---:|---:|---:|---:|")
         for name, path in scenes:
+            steps = args.slab_steps if name == "slab_impact" else args.steps
             out = subprocess.run([args.volpar, "run", path, "--no-output", "--json", "--threads", str(args.threads),
-                                  "--steps", str(args.steps)], check=True, capture_output=True, text=True).stdout
+                                  "--steps", str(steps)], check=True, capture_output=True, text=True).stdout
             d = json.loads(out)
             stages = d["stage_seconds"]
             breakage = stages["breakage"] / d["steps"]
