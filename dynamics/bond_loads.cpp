@@ -189,6 +189,14 @@ bool BondLoads::replay(const BodyInfo& body, const ParticleStore& particles, con
   return true;
 }
 
+void BondLoads::startFrom(const BondLoads& parent, std::span<const std::uint32_t> parentNode, const Mat3& turn) {
+  for (std::size_t i = 0; i < parentNode.size() && 6 * i < static_cast<std::size_t>(u_.size()); ++i) {
+    const auto from = 6 * static_cast<Eigen::Index>(parentNode[i]), to = 6 * static_cast<Eigen::Index>(i);
+    u_.segment<3>(to) = turn * parent.u_.segment<3>(from);
+    u_.segment<3>(to + 3) = turn * parent.u_.segment<3>(from + 3);
+  }
+}
+
 std::size_t BondLoads::bytes() const {
   return bonds_.size() * sizeof(ConnectorId) + beams_.size() * sizeof(Beam) + removed_.size() * 4 +
          k_.block.size() * sizeof(Block6) + (k_.column.size() + k_.start.size() + k_.diagonal.size()) * 4 + multigrid_.bytes() +

@@ -89,6 +89,10 @@ class BondLoads {
   /// The displacements and rotations of the last solve (6 per particle, in the body's order), from which the
   /// next one starts.
   [[nodiscard]] std::span<const double> displacements() const { return {u_.data(), static_cast<std::size_t>(u_.size())}; }
+  /// Starts the next solve from the displacements of `parent`'s nodes `parentNode[i]` (one for each of this
+  /// frame's particles), turned by `turn` (the parent's body axes to this body's): a piece split off a body
+  /// starts where its parent was.
+  void startFrom(const BondLoads& parent, std::span<const std::uint32_t> parentNode, const Mat3& turn);
   /// Builds the frame from `bonds`, removes `removed` in order and starts from `displacements` (a
   /// checkpoint's frame). False where an entry is out of range or the displacements do not fit.
   bool replay(const BodyInfo& body, const ParticleStore& particles, const ConnectorStore& connectors,

@@ -234,10 +234,12 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
   // each part's particles and connectors, in the parent's order, in one pass over each (not one a part)
   std::vector<std::vector<ParticleId>> partParticles(components);
   std::vector<std::vector<ConnectorId>> partConnectors(components);
+  std::vector<std::vector<std::uint32_t>> partParentIndex(components);  // each particle's place in the parent
   {
     std::vector<std::pair<std::size_t, std::uint32_t>> partOf(parentInfo.particles.size());  // (particle id, part)
     for (std::size_t i = 0; i < parentInfo.particles.size(); ++i) {
       partParticles[component[i]].push_back(parentInfo.particles[i]);
+      partParentIndex[component[i]].push_back(static_cast<std::uint32_t>(i));
       partOf[i] = {parentInfo.particles[i].index(), component[i]};
     }
     std::sort(partOf.begin(), partOf.end());
@@ -296,6 +298,11 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
     updateWorldInertia(state);
     moveParticles(ids, id, mp.centre, axes.rotation);
     addRigidBody(state, std::move(info), std::move(partConnectors[part]));
+    // its frame starts from its parent's displacements, turned from the parent's axes into its own: under the
+    // same loads, they differ near the crack
+    if (BondLoads* frame = bondLoads_[id.index()].get(); frame && bondLoads_[parentId.index()])
+      frame->startFrom(*bondLoads_[parentId.index()], partParentIndex[part],
+                       axes.rotation.toRotationMatrix().transpose() * parentState.orientation.toRotationMatrix());
     bodies_.info[id.index()].breakable = true;  // (a fragment, whether or not it can break further)
     ++stats_.bodiesCreated;
   }

@@ -78,6 +78,7 @@ SHORTEN = {
     "collision_bench": ["--quick"],
     "narrow_phase_bench": ["--quick"],
     "impact_sweep.py": ["--speeds", "2,4", "--seeds", "1"],
+    "fracture_cost.py": ["--steps", "2", "--slab-steps", "1"],
     "plot_pile_bench.py": [],
     "scaling.py": ["--sizes", "2x2x2", "--layouts", "1x1,2x1", "--settle", "10", "--steps", "5", "--repeats", "1"],
 }
