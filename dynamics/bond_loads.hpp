@@ -56,15 +56,15 @@ struct BondStress {
 /// The frame of one bonded rigid body and the loads of its bonds.
 ///
 /// K u = f is solved by conjugate gradients preconditioned by aggregation multigrid (frame_multigrid.hpp),
-/// warm started from the body's last displacements: between steps the loads change little, and after a
-/// break only near it. The iterations stop where the residual is below kTolerance of the load (in the
-/// Euclidean norm of forces and moments); the bond loads then agree with a direct solve to 1e-5 of the
-/// largest (tests/dynamics/bond_loads_accuracy_test.cpp). Costs are linear in the bonds: building the frame
+/// warm started from the body's last displacements (after a break, the loads change only near it). The
+/// iterations stop where the residual is below kTolerance of the load (in the Euclidean norm of forces and
+/// moments); the bond loads then agree with a direct solve to 1e-3 of the largest
+/// (tests/dynamics/bond_loads_accuracy_test.cpp), well inside the spread of the bonds' strengths. Costs are linear in the bonds: building the frame
 /// and its hierarchy, each iteration (about four products with the stiffness), and evaluating the bonds;
 /// removing k bonds costs O(k) (the hierarchy changes in place).
 class BondLoads {
  public:
-  static constexpr double kTolerance = 1e-6;  // relative residual where the iterations stop
+  static constexpr double kTolerance = 1e-4;  // relative residual where the iterations stop
   static constexpr int kMaxIterations = 300;
 
   /// Builds the frame of one rigid body from its unbroken `bonds` (body frame). Returns false where the body
