@@ -17,21 +17,24 @@ Block6 prolongation(const Vec3& d) {
   return p;
 }
 
-/// r_i - sum_{j != i} A_ij z_j (columns sorted: those before the diagonal are j < i).
-Vec6 offDiagonalResidual(const BlockMatrix6& a, std::uint32_t i, const Eigen::VectorXd& r, const Eigen::VectorXd& z) {
-  Vec6 s = r.segment<6>(6 * static_cast<Eigen::Index>(i));
-  for (std::uint32_t k = a.start[i]; k < a.diagonal[i]; ++k) s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
-  for (std::uint32_t k = a.diagonal[i] + 1; k < a.start[i + 1]; ++k)
-    s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
-  return s;
-}
-
 /// f(begin, end) over [0, n), shared among the pool's workers where there are enough rows (each row's
 /// result never depends on which worker computes it).
 template <class F>
 void forRows(ThreadPool* pool, std::size_t n, F&& f) {
   if (pool && pool->worthSharing(n, FrameMultigrid::kRowsPerWorker)) pool->run(n, [&](int, std::size_t b, std::size_t e) { f(b, e); });
   else f(0, n);
+}
+
+/// f(chunk) for every chunk of [0, chunks), the chunks shared among the pool's workers where it is given
+/// (each chunk's result never depends on which worker computes it).
+template <class F>
+void forChunks(ThreadPool* pool, std::size_t chunks, F&& f) {
+  if (pool && chunks > 1 && pool->worthSharing(chunks, 1))
+    pool->run(chunks, [&](int, std::size_t b, std::size_t e) {
+      for (std::size_t c = b; c < e; ++c) f(c);
+    });
+  else
+    for (std::size_t c = 0; c < chunks; ++c) f(c);
 }
 
 }  // namespace
@@ -199,6 +202,8 @@ void FrameMultigrid::build(const BlockMatrix6& fine, const std::vector<Vec3>& po
     level.members = members;
     level.aggregate = std::move(aggregate);
     level.diagonalInverse.resize(n);
+    level.sweepRows = std::max<std::size_t>(kRowsPerWorker, (n + kSweepChunks - 1) / kSweepChunks);
+    if (level.sweepRows < n) level.before.resize(6 * static_cast<Eigen::Index>(n));
     level.residual.resize(6 * static_cast<Eigen::Index>(n));
     level.coarseRhs.resize(6 * static_cast<Eigen::Index>(count));
     level.coarseSolution.resize(6 * static_cast<Eigen::Index>(count));
@@ -294,20 +299,32 @@ void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::Ve
   }
   Level& level = levels_[l];
   const auto n = static_cast<std::uint32_t>(a.rows());
-  // the forward sweep from zero, in node order: z_i = D_i^-1 (r_i - sum_{j < i} A_ij z_j) (one thread: a
-  // sweep's result depends on its order, and the order is what keeps the same bits for any number of threads)
-  for (std::uint32_t i = 0; i < n; ++i) {
-    Vec6 s = r.segment<6>(6 * static_cast<Eigen::Index>(i));
-    for (std::uint32_t k = a.start[i]; k < a.diagonal[i]; ++k)
-      s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
-    z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * s;
-  }
-  // its residual r - A z: what is left of each row is - sum_{j > i} A_ij z_j (the sweep zeroed the rest)
+  const auto rows = static_cast<std::uint32_t>(level.sweepRows);
+  const std::size_t chunks = (n + rows - 1) / rows;
+  const auto product = [&](std::uint32_t k, const Eigen::VectorXd& x) {
+    return a.block[k] * x.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
+  };
+  // the forward sweep from zero, chunk by chunk (sweepRows nodes each), in node order within a chunk:
+  // z_i = D_i^-1 (r_i - sum_{chunk start <= j < i} A_ij z_j). The chunks are fixed by the level's size, not by
+  // the threads, so the result is the same bits for any number; with one chunk it is Gauss-Seidel itself
+  forChunks(pool_, chunks, [&](std::size_t c) {
+    const auto lo = static_cast<std::uint32_t>(c) * rows, hi = std::min(n, lo + rows);
+    for (std::uint32_t i = lo; i < hi; ++i) {
+      Vec6 s = r.segment<6>(6 * static_cast<Eigen::Index>(i));
+      std::uint32_t k = a.start[i];
+      while (k < a.diagonal[i] && a.column[k] < lo) ++k;
+      for (; k < a.diagonal[i]; ++k) s.noalias() -= product(k, z);
+      z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * s;
+    }
+  });
+  // its residual r - A z: what is left of each row is - sum A_ij z_j over the j the sweep left out (those
+  // after i, and those before its chunk)
   forRows(pool_, n, [&](std::size_t from, std::size_t to) {
     for (std::size_t i = from; i < to; ++i) {
+      const std::uint32_t lo = static_cast<std::uint32_t>(i) / rows * rows;
       Vec6 s = Vec6::Zero();
-      for (std::uint32_t k = a.diagonal[i] + 1; k < a.start[i + 1]; ++k)
-        s.noalias() -= a.block[k] * z.segment<6>(6 * static_cast<Eigen::Index>(a.column[k]));
+      for (std::uint32_t k = a.start[i]; k < a.diagonal[i] && a.column[k] < lo; ++k) s.noalias() -= product(k, z);
+      for (std::uint32_t k = a.diagonal[i] + 1; k < a.start[i + 1]; ++k) s.noalias() -= product(k, z);
       level.residual.segment<6>(6 * static_cast<Eigen::Index>(i)) = s;
     }
   });
@@ -334,8 +351,25 @@ void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::Ve
       z.segment<3>(6 * static_cast<Eigen::Index>(i) + 3) += turn;
     }
   });
-  for (std::uint32_t i = n; i-- > 0;)
-    z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * offDiagonalResidual(a, i, r, z);
+  // the backward sweep, the forward one's transpose: z_i = D_i^-1 (r_i - sum_{j != i} A_ij z_j) in reverse
+  // node order within each chunk, the other chunks' z as they were before it (`before`)
+  if (chunks > 1) level.before = z;
+  forChunks(pool_, chunks, [&](std::size_t c) {
+    const auto lo = static_cast<std::uint32_t>(c) * rows, hi = std::min(n, lo + rows);
+    for (std::uint32_t i = hi; i-- > lo;) {
+      // (columns sorted: those of other chunks first and last, this chunk's between)
+      const std::uint32_t first = a.start[i], last = a.start[i + 1];
+      std::uint32_t inside = first, after = last;
+      while (inside < last && a.column[inside] < lo) ++inside;
+      while (after > inside && a.column[after - 1] >= hi) --after;
+      Vec6 s = r.segment<6>(6 * static_cast<Eigen::Index>(i));
+      for (std::uint32_t k = first; k < inside; ++k) s.noalias() -= product(k, level.before);
+      for (std::uint32_t k = inside; k < a.diagonal[i]; ++k) s.noalias() -= product(k, z);
+      for (std::uint32_t k = a.diagonal[i] + 1; k < after; ++k) s.noalias() -= product(k, z);
+      for (std::uint32_t k = after; k < last; ++k) s.noalias() -= product(k, level.before);
+      z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * s;
+    }
+  });
 }
 
 std::size_t FrameMultigrid::bytes() const {
@@ -344,7 +378,7 @@ std::size_t FrameMultigrid::bytes() const {
     b += l.aggregate.size() * 4 + l.offset.size() * sizeof(Vec3) + l.diagonalInverse.size() * sizeof(Block6) +
          l.coarse.block.size() * sizeof(Block6) + l.coarse.column.size() * 4 + l.coarse.start.size() * 4 +
          l.coarse.diagonal.size() * 4 + (l.memberStart.size() + l.members.size()) * 4 +
-         static_cast<std::size_t>(l.residual.size() + l.coarseRhs.size() + l.coarseSolution.size() + l.krylov.c.size() +
+         static_cast<std::size_t>(l.residual.size() + l.coarseRhs.size() + l.coarseSolution.size() + l.before.size() + l.krylov.c.size() +
                                   l.krylov.v.size() + l.krylov.r.size() + l.krylov.d.size() + l.krylov.w.size()) * 8;
   return b;
 }

@@ -9,9 +9,12 @@
 // turns by Theta. The coarse stiffness is the Galerkin product P^T K P, so the rigid motions of the whole
 // body, which a frame's stiffness barely resists, are represented exactly on every level. The coarsest
 // level (at most kCoarsest nodes) is solved directly. A cycle smooths with one symmetric block Gauss-Seidel
-// sweep in node order (forward before the coarse correction, backward after; on one thread, so that the
-// result is the same bits for any number: the products, restrictions, prolongations and sums around them
-// are shared among threads); each coarse level is solved by up to two steps of flexible conjugate gradients
+// sweep (forward before the coarse correction, backward after) in node order within chunks of a level's
+// nodes: up to kSweepChunks chunks of at least kRowsPerWorker nodes, fixed by the level's size, each swept
+// on its own (the backward sweep reads the other chunks' values from before it), so that the threads share
+// the sweeps and the result is the same bits for any number of them (a level of one chunk is swept by
+// Gauss-Seidel itself); the products, restrictions, prolongations and sums around them are shared too.
+// Each coarse level is solved by up to two steps of flexible conjugate gradients
 // preconditioned by its own cycle (the K-cycle of Notay and Vassilevski, 2008), which keeps the iterations
 // of the outer (flexible) conjugate gradients from growing with the number of levels. The preconditioner is
 // then not exactly linear, so the outer method must be flexible (BondLoads::solve).
@@ -80,6 +83,7 @@ class FrameMultigrid {
 
   static constexpr std::size_t kCoarsest = 32;        // nodes of a level solved directly
   static constexpr std::size_t kRowsPerWorker = 1024;  // rows worth handing to a worker
+  static constexpr std::size_t kSweepChunks = 8;       // chunks a level's sweeps are cut into, at most
 
  private:
   /// The vectors of a K-cycle's steps on one level.
@@ -93,7 +97,9 @@ class FrameMultigrid {
     std::vector<Block6> diagonalInverse;    // of this level's diagonal blocks (the smoother's)
     std::vector<std::uint32_t> memberStart, members;     // the nodes of each aggregate, in node order
     BlockMatrix6 coarse;                    // the next level's matrix (unused below the coarsest: coarsest_)
+    std::size_t sweepRows = 0;              // nodes of a chunk of the sweeps
     Eigen::VectorXd residual, coarseRhs, coarseSolution;
+    Eigen::VectorXd before;                 // z before the backward sweep (where there is more than one chunk)
     Krylov krylov;  // (levels above the finest: the K-cycle's steps on this level)
   };
   /// z = the cycle of `level` on r: smoothing, the coarse correction, smoothing (the direct solve, at the coarsest).
