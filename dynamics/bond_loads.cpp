@@ -75,18 +75,42 @@ Eigen::Matrix<double, 12, 12> beamStiffness(const Vec3& e, double length, double
 
 bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const ConnectorStore& c,
                       std::span<const ConnectorId> bonds) {
+  const std::size_t n = body.particles.size();
+  std::vector<std::uint32_t> nodes(n);
+  std::vector<Vec3> positions(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    nodes[i] = static_cast<std::uint32_t>(body.particles[i].index());
+    positions[i] = p.local[body.particles[i].index()];
+  }
+  if (!buildFrame(nodes, positions, c, bonds)) return false;
+  bodyNode_.resize(n);
+  for (std::uint32_t i = 0; i < n; ++i) bodyNode_[i] = i;
+  toFrame_ = Mat3::Identity();
+  return true;
+}
+
+bool BondLoads::buildFrame(std::span<const std::uint32_t> nodes, std::span<const Vec3> positions, const ConnectorStore& c,
+                           std::span<const ConnectorId> bonds) {
   bonds_.assign(bonds.begin(), bonds.end());
   beams_.clear();
   removed_.clear();
   iterations_ = 0;
+  nodeParticle_.assign(nodes.begin(), nodes.end());
+  nodePosition_.assign(positions.begin(), positions.end());
   if (bonds_.empty()) return false;
-  const std::size_t n = body.particles.size();
-  // particle id -> local index, by a sorted list of the body's ids (a fragment's ids are few and scattered)
+  const std::size_t n = nodes.size();
+  // particle id -> node, by a sorted list of the nodes' ids (a fragment's ids are few and scattered)
   std::vector<std::pair<std::uint32_t, std::uint32_t>> local(n);
-  for (std::size_t i = 0; i < n; ++i) local[i] = {static_cast<std::uint32_t>(body.particles[i].index()), static_cast<std::uint32_t>(i)};
+  for (std::size_t i = 0; i < n; ++i) local[i] = {nodes[i], static_cast<std::uint32_t>(i)};
   std::sort(local.begin(), local.end());
+  bool found = true;
   const auto localOf = [&](ParticleId q) {
-    return std::lower_bound(local.begin(), local.end(), std::pair{static_cast<std::uint32_t>(q.index()), 0u})->second;
+    const auto it = std::lower_bound(local.begin(), local.end(), std::pair{static_cast<std::uint32_t>(q.index()), 0u});
+    if (it == local.end() || it->first != q.index()) {
+      found = false;
+      return 0u;
+    }
+    return it->second;
   };
   beams_.reserve(bonds_.size());
   for (const ConnectorId id : bonds_) {
@@ -94,7 +118,7 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
     Beam beam;
     beam.a = localOf(c.a[k]);
     beam.b = localOf(c.b[k]);
-    const Vec3 d = p.local[c.b[k].index()] - p.local[c.a[k].index()];
+    const Vec3 d = positions[beam.b] - positions[beam.a];
     beam.length = d.norm();
     beam.e = d / beam.length;
     const double r = c.bondRadius[k], e = c.youngsModulus[k];
@@ -105,6 +129,7 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
     beam.bending = e * inertia / beam.length;
     beams_.push_back(beam);
   }
+  if (!found) return false;
   // the pattern: each particle's bonded neighbours
   std::vector<std::uint32_t> neighbourStart(n + 1, 0), neighbours;
   {
@@ -146,11 +171,9 @@ bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const Connec
     }
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 6; ++k) k_.block[k_.diagonal[i]](k, k) += 1e-9 * (k < 3 ? maxMove : maxTurn);
-  std::vector<Vec3> positions(n);
-  for (std::size_t i = 0; i < n; ++i) positions[i] = p.local[body.particles[i].index()];
-  multigrid_.build(k_, positions);
+  multigrid_.build(k_, nodePosition_);
   const auto dofs = static_cast<Eigen::Index>(6 * n);
-  f_.resize(dofs);
+  f_.setZero(dofs);
   u_.setZero(dofs);
   r_.resize(dofs);
   z_.resize(dofs);
@@ -176,29 +199,69 @@ void BondLoads::remove(std::span<const std::size_t> entries) {
   }
 }
 
-bool BondLoads::replay(const BodyInfo& body, const ParticleStore& particles, const ConnectorStore& connectors,
-                       std::span<const ConnectorId> bonds, std::span<const std::uint32_t> removed,
-                       std::span<const double> displacements) {
-  if (!build(body, particles, connectors, bonds) || displacements.size() != static_cast<std::size_t>(u_.size())) return false;
+bool BondLoads::replay(const BodyInfo& body, const ConnectorStore& connectors, std::span<const std::uint32_t> nodes,
+                       std::span<const Vec3> positions, const Mat3& axes, std::span<const ConnectorId> bonds,
+                       std::span<const std::uint32_t> removed, std::span<const double> displacements) {
+  if (positions.size() != nodes.size() || displacements.size() != 6 * nodes.size()) return false;
+  for (const Vec3& x : positions)
+    if (!x.allFinite()) return false;
+  if (!buildFrame(nodes, positions, connectors, bonds)) return false;
   for (const std::uint32_t entry : removed) {
     if (entry >= beams_.size() || !beams_[entry].active) return false;
     const std::size_t k = entry;
     remove(std::span<const std::size_t>(&k, 1));
   }
+  // the body's particles, each a node
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> local(nodes.size());
+  for (std::size_t i = 0; i < nodes.size(); ++i) local[i] = {nodes[i], static_cast<std::uint32_t>(i)};
+  std::sort(local.begin(), local.end());
+  bodyNode_.resize(body.particles.size());
+  for (std::size_t i = 0; i < body.particles.size(); ++i) {
+    const auto q = static_cast<std::uint32_t>(body.particles[i].index());
+    const auto it = std::lower_bound(local.begin(), local.end(), std::pair{q, 0u});
+    if (it == local.end() || it->first != q) return false;
+    bodyNode_[i] = it->second;
+  }
+  toFrame_ = axes;
   u_ = Eigen::Map<const Eigen::VectorXd>(displacements.data(), u_.size());
   return true;
 }
 
-void BondLoads::startFrom(const BondLoads& parent, std::span<const std::uint32_t> parentNode, const Mat3& turn) {
-  for (std::size_t i = 0; i < parentNode.size() && 6 * i < static_cast<std::size_t>(u_.size()); ++i) {
-    const auto from = 6 * static_cast<Eigen::Index>(parentNode[i]), to = 6 * static_cast<Eigen::Index>(i);
-    u_.segment<3>(to) = turn * parent.u_.segment<3>(from);
-    u_.segment<3>(to + 3) = turn * parent.u_.segment<3>(from + 3);
+void BondLoads::keepFor(std::span<const std::uint32_t> parentIndex, const Mat3& turn) {
+  std::vector<std::uint32_t> kept(parentIndex.size());
+  for (std::size_t i = 0; i < parentIndex.size(); ++i) kept[i] = bodyNode_[parentIndex[i]];
+  bodyNode_.swap(kept);
+  // vectors in the piece's axes turn back into the parent's (turn^T), and from there into the frame's
+  toFrame_ = toFrame_ * turn.transpose();
+  std::vector<std::uint8_t> live(nodeParticle_.size(), 0);
+  for (const std::uint32_t node : bodyNode_) live[node] = 1;
+  // the other pieces' bonds leave the frame (every bond between the pieces is broken already), and their
+  // nodes rest: no load, no displacement
+  std::vector<std::size_t> leaving;
+  for (std::size_t k = 0; k < beams_.size(); ++k)
+    if (beams_[k].active && (!live[beams_[k].a] || !live[beams_[k].b])) leaving.push_back(k);
+  remove(leaving);
+  for (std::size_t node = 0; node < live.size(); ++node)
+    if (!live[node]) {
+      u_.segment<6>(6 * static_cast<Eigen::Index>(node)).setZero();
+      f_.segment<6>(6 * static_cast<Eigen::Index>(node)).setZero();
+    }
+}
+
+void BondLoads::startFrom(const BondLoads& parent, std::span<const std::uint32_t> parentIndex, const Mat3& turn) {
+  // the parent's displacements are in its frame's axes: back into its body's, then into this body's
+  const Mat3 toHere = toFrame_ * turn * parent.toFrame_.transpose();
+  for (std::size_t i = 0; i < parentIndex.size() && i < bodyNode_.size(); ++i) {
+    const auto from = 6 * static_cast<Eigen::Index>(parent.bodyNode_[parentIndex[i]]);
+    const auto to = 6 * static_cast<Eigen::Index>(bodyNode_[i]);
+    u_.segment<3>(to) = toHere * parent.u_.segment<3>(from);
+    u_.segment<3>(to + 3) = toHere * parent.u_.segment<3>(from + 3);
   }
 }
 
 std::size_t BondLoads::bytes() const {
   return bonds_.size() * sizeof(ConnectorId) + beams_.size() * sizeof(Beam) + removed_.size() * 4 +
+         (nodeParticle_.size() + bodyNode_.size()) * 4 + nodePosition_.size() * sizeof(Vec3) +
          k_.block.size() * sizeof(Block6) + (k_.column.size() + k_.start.size() + k_.diagonal.size()) * 4 + multigrid_.bytes() +
          6 * static_cast<std::size_t>(u_.size()) * sizeof(double);
 }
@@ -212,12 +275,14 @@ void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleSt
   const Vec3 residualMoment = body.inertiaResidual * alphaLocal;  // shared by mass
   // self-equilibrated loads in the body frame: forces on the particles less their d'Alembert forces, and
   // the d'Alembert moments of what each particle adds to the body's inertia beyond its point mass
+  // (in the frame's axes; the nodes of pieces split off a kept frame carry none)
+  const Mat3 toFrame = toFrame_ * r.transpose();
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t q = body.particles[i].index();
+    const auto node = 6 * static_cast<Eigen::Index>(bodyNode_[i]);
     const Vec3 inertial = motion.inertialForce(s, p.mass[q], p.position[q] - s.position);
-    f_.segment<3>(static_cast<Eigen::Index>(6 * i)) = r.transpose() * (loads[q] - inertial);
-    f_.segment<3>(static_cast<Eigen::Index>(6 * i + 3)) =
-        -(p.ownInertia[q] * alphaLocal + (p.mass[q] / body.mass) * residualMoment);
+    f_.segment<3>(node) = toFrame * (loads[q] - inertial);
+    f_.segment<3>(node + 3) = -(toFrame_ * (p.ownInertia[q] * alphaLocal + (p.mass[q] / body.mass) * residualMoment));
   }
   // flexible conjugate gradients preconditioned by the multigrid, from the last displacements (every sum in
   // fixed chunks: the same bits for any number of threads)

@@ -71,6 +71,18 @@ class BondLoads {
   /// has no bonds.
   bool build(const BodyInfo& body, const ParticleStore& particles, const ConnectorStore& connectors,
              std::span<const ConnectorId> bonds);
+  /// Keeps this frame (its parent's, moved here) for the largest piece its body split into: `parentIndex[i]` is
+  /// the place in the parent's particles of the piece's particle i, `turn` the parent's body axes to the
+  /// piece's. The nodes of the other pieces stay in the frame without bonds or loads (their bonds leave it);
+  /// a frame kept while at least half its nodes are the piece's costs at most twice a new one's per
+  /// iteration, and the split costs O(the other pieces' bonds) instead of a new frame.
+  void keepFor(std::span<const std::uint32_t> parentIndex, const Mat3& turn);
+  /// The frame's nodes (particle ids, in the order it was built; a kept frame's include its pieces' left).
+  [[nodiscard]] std::span<const std::uint32_t> nodes() const { return nodeParticle_; }
+  /// The nodes' positions when it was built, in the axes it was built in.
+  [[nodiscard]] std::span<const Vec3> nodePositions() const { return nodePosition_; }
+  /// The rotation from the body's axes now to the axes the frame was built in.
+  [[nodiscard]] const Mat3& axes() const { return toFrame_; }
 
   /// The loads of the bonds given to build(), for world loads [N] on the particles (indexed by particle id)
   /// over a step of the body in state `s`.
@@ -86,17 +98,20 @@ class BondLoads {
   /// The entries removed since build(), in order: with bonds() and displacements(), what makes the same frame
   /// again (replay), bit for bit.
   [[nodiscard]] std::span<const std::uint32_t> removed() const { return removed_; }
-  /// The displacements and rotations of the last solve (6 per particle, in the body's order), from which the
+  /// The displacements and rotations of the last solve (6 a node, in the frame's axes), from which the
   /// next one starts.
   [[nodiscard]] std::span<const double> displacements() const { return {u_.data(), static_cast<std::size_t>(u_.size())}; }
-  /// Starts the next solve from the displacements of `parent`'s nodes `parentNode[i]` (one for each of this
-  /// frame's particles), turned by `turn` (the parent's body axes to this body's): a piece split off a body
-  /// starts where its parent was.
-  void startFrom(const BondLoads& parent, std::span<const std::uint32_t> parentNode, const Mat3& turn);
-  /// Builds the frame from `bonds`, removes `removed` in order and starts from `displacements` (a
-  /// checkpoint's frame). False where an entry is out of range or the displacements do not fit.
-  bool replay(const BodyInfo& body, const ParticleStore& particles, const ConnectorStore& connectors,
-              std::span<const ConnectorId> bonds, std::span<const std::uint32_t> removed, std::span<const double> displacements);
+  /// Starts the next solve from the displacements of `parent`'s particles `parentIndex[i]` (places in the
+  /// parent's particles, one for each of this frame's particles), turned by `turn` (the parent's body axes to
+  /// this body's): a piece split off a body starts where its parent was.
+  void startFrom(const BondLoads& parent, std::span<const std::uint32_t> parentIndex, const Mat3& turn);
+  /// The frame of `nodes` at `positions` from `bonds`, with `removed` removed in order, starting from
+  /// `displacements` (6 a node), for the body `body` whose axes `axes` turns into the frame's (a checkpoint's
+  /// frame, bit for bit). False where a bond's end or a body's particle is not a node, an entry is out of
+  /// range, or the sizes do not fit.
+  bool replay(const BodyInfo& body, const ConnectorStore& connectors, std::span<const std::uint32_t> nodes,
+              std::span<const Vec3> positions, const Mat3& axes, std::span<const ConnectorId> bonds,
+              std::span<const std::uint32_t> removed, std::span<const double> displacements);
 
   /// Conjugate-gradient iterations of the last solve (0 where the last displacements still solved it).
   [[nodiscard]] int iterations() const { return iterations_; }
@@ -113,8 +128,16 @@ class BondLoads {
     bool active = true;
   };
 
+  /// The frame of `nodes` at `positions` from `bonds` (build() and replay()).
+  bool buildFrame(std::span<const std::uint32_t> nodes, std::span<const Vec3> positions, const ConnectorStore& connectors,
+                  std::span<const ConnectorId> bonds);
+
   std::vector<ConnectorId> bonds_;
   std::vector<Beam> beams_;
+  std::vector<std::uint32_t> nodeParticle_;  // each node's particle id
+  std::vector<Vec3> nodePosition_;           // each node's position when built (the frame's axes)
+  std::vector<std::uint32_t> bodyNode_;      // the node of each of the body's particles, in the body's order
+  Mat3 toFrame_ = Mat3::Identity();          // the body's axes to the frame's
   BlockMatrix6 k_;            // the frame's stiffness now
   FrameMultigrid multigrid_;  // of k_, changed with it
   std::vector<std::uint32_t> removed_;  // entries removed since build(), in order

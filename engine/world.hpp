@@ -233,7 +233,9 @@ class World {
   void moveParticles(std::span<const ParticleId> ids, BodyId id, const Vec3& centre, const Quat& axes);
   /// Adds a rigid body whose particles were moved into it (moveParticles), with its connectors, and makes it
   /// take part: broadphase, contacts, breakage.
-  BodyId addRigidBody(const BodyState& state, BodyInfo info, std::vector<ConnectorId> connectors);
+  /// Adds a rigid body and, where `lattice`, the lattice or frame of its breakable connectors (a split's
+  /// largest piece keeps its parent's frame instead).
+  BodyId addRigidBody(const BodyState& state, BodyInfo info, std::vector<ConnectorId> connectors, bool lattice = true);
   /// Retires a rigid body at `step` (it broke apart or was glued): it keeps its id and history, but no
   /// particles, motion or lattice.
   void retireBody(BodyId id, std::int64_t step);

@@ -252,6 +252,25 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
       if (pa != 0xffffffffu && pa == part(connectors_.b[c.index()])) partConnectors[pa].push_back(c);
     }
   }
+  // the largest piece keeps the parent's frame where it holds at least half the frame's nodes and can still
+  // break (the other pieces' bonds leave it): a chip knocked off a large body costs the chip's bonds, not a
+  // new frame for the rest. The other pieces' frames are built, starting from the parent's displacements.
+  std::unique_ptr<BondLoads> parentFrame = std::move(bondLoads_[parentId.index()]);
+  std::size_t heir = components;
+  if (parentFrame) {
+    std::size_t largest = 0;
+    for (std::size_t part = 1; part < components; ++part)
+      if (partParticles[part].size() > partParticles[largest].size()) largest = part;
+    bool canBreak = false;
+    for (const ConnectorId c : partConnectors[largest]) {
+      const std::size_t k = c.index();
+      canBreak = canBreak || (connectors_.kind[k] == ConnectorKind::Bond && !connectors_.broken[k] &&
+                              (std::isfinite(connectors_.tensileStrength[k]) || std::isfinite(connectors_.shearStrength[k])));
+    }
+    if (canBreak && 2 * partParticles[largest].size() >= parentFrame->nodes().size()) heir = largest;
+  }
+  BodyId heirId;
+  Mat3 heirTurn = Mat3::Identity();
   for (std::size_t part = 0; part < components; ++part) {
     std::vector<ParticleId> ids = std::move(partParticles[part]);
     std::vector<Vec3> x;
@@ -297,14 +316,23 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
     state.invInertiaLocal = axes.moments.cwiseInverse();
     updateWorldInertia(state);
     moveParticles(ids, id, mp.centre, axes.rotation);
-    addRigidBody(state, std::move(info), std::move(partConnectors[part]));
-    // its frame starts from its parent's displacements, turned from the parent's axes into its own: under the
-    // same loads, they differ near the crack
-    if (BondLoads* frame = bondLoads_[id.index()].get(); frame && bondLoads_[parentId.index()])
-      frame->startFrom(*bondLoads_[parentId.index()], partParentIndex[part],
-                       axes.rotation.toRotationMatrix().transpose() * parentState.orientation.toRotationMatrix());
+    const Mat3 turn = axes.rotation.toRotationMatrix().transpose() * parentState.orientation.toRotationMatrix();
+    addRigidBody(state, std::move(info), std::move(partConnectors[part]), part != heir);
+    if (part == heir) {
+      heirId = id;
+      heirTurn = turn;
+      breakableRigid_.push_back(id);  // (its frame comes below, once the other pieces have started from it)
+    } else if (BondLoads* frame = bondLoads_[id.index()].get(); frame && parentFrame) {
+      // its frame starts from its parent's displacements, turned from the parent's axes into its own: under
+      // the same loads, they differ near the crack
+      frame->startFrom(*parentFrame, partParentIndex[part], turn);
+    }
     bodies_.info[id.index()].breakable = true;  // (a fragment, whether or not it can break further)
     ++stats_.bodiesCreated;
+  }
+  if (heir < components) {
+    parentFrame->keepFor(partParentIndex[heir], heirTurn);
+    bondLoads_[heirId.index()] = std::move(parentFrame);
   }
   retireBody(parentId, stepIndex_ + 1);
 }
@@ -327,7 +355,7 @@ void World::moveParticles(std::span<const ParticleId> ids, BodyId id, const Vec3
   }
 }
 
-BodyId World::addRigidBody(const BodyState& state, BodyInfo info, std::vector<ConnectorId> connectors) {
+BodyId World::addRigidBody(const BodyState& state, BodyInfo info, std::vector<ConnectorId> connectors, bool lattice) {
   const BodyId id = bodies_.add(state, std::move(info));
   bodyKinds_.push_back(bodies_.info.back().kind);
   bodyRuns_.push_back(runOf(bodies_.info.back().particles));
@@ -341,7 +369,7 @@ BodyId World::addRigidBody(const BodyState& state, BodyInfo info, std::vector<Co
   broadphase_.addBody(id, bodyBoxes_[id.index()], false);
   contactFinder_.addBody(id, particles_, bodies_);
   cores_.update(id, particles_, bodies_, normals_);
-  buildLattice(id);
+  if (lattice) buildLattice(id);
   contactsStale_ = true;
   return id;
 }

@@ -246,10 +246,17 @@ void World::saveState(StateArchive& a) const {
   std::vector<std::vector<ConnectorId>> frameBonds;
   std::vector<std::uint32_t> removedAll, removedStart{0};
   std::vector<double> displacements;
+  std::vector<std::vector<ParticleId>> frameNodes;
+  std::vector<Vec3> nodePositions;
+  std::vector<Mat3> frameAxes;
   for (std::size_t i = 0; i < nb; ++i)
     if (const BondLoads* bl = bondLoads_[i].get()) {
       framed.push_back(static_cast<std::uint32_t>(i));
       frameBonds.emplace_back(bl->bonds().begin(), bl->bonds().end());
+      frameNodes.emplace_back();
+      for (const std::uint32_t q : bl->nodes()) frameNodes.back().emplace_back(q);
+      nodePositions.insert(nodePositions.end(), bl->nodePositions().begin(), bl->nodePositions().end());
+      frameAxes.push_back(bl->axes());
       removedAll.insert(removedAll.end(), bl->removed().begin(), bl->removed().end());
       removedStart.push_back(static_cast<std::uint32_t>(removedAll.size()));
       displacements.insert(displacements.end(), bl->displacements().begin(), bl->displacements().end());
@@ -259,6 +266,9 @@ void World::saveState(StateArchive& a) const {
   a.put("bond_frames/removed", std::span<const std::uint32_t>(removedAll));
   a.put("bond_frames/removed_start", std::span<const std::uint32_t>(removedStart));
   a.put("bond_frames/displacements", std::span<const double>(displacements), 6);
+  putLists(a, "bond_frames/nodes", frameNodes);
+  a.putVec3("bond_frames/node_positions", nodePositions);
+  a.putMat3("bond_frames/axes", frameAxes);
 
   normals_.save(a);
   saveContacts(a, contacts_);
@@ -403,16 +413,23 @@ Status World::restoreState(const StateArchive& archive) {
   const std::vector<std::uint32_t> removedAll = r.get<std::uint32_t>("bond_frames/removed");
   const std::vector<std::uint32_t> removedStart = r.get<std::uint32_t>("bond_frames/removed_start", 1, framed.size() + 1);
   const std::vector<double> displacements = r.get<double>("bond_frames/displacements", 6);
+  // a frame's nodes: its body's particles, and those of pieces split off it while it was kept (bond_loads.hpp)
+  const std::vector<std::vector<ParticleId>> frameNodes = getLists<ParticleTag>(r, "bond_frames/nodes", framed.size(), np);
+  std::vector<std::size_t> nodeStart{0};
+  for (const auto& nodes : frameNodes) nodeStart.push_back(nodeStart.back() + nodes.size());
+  const std::vector<Vec3> nodePositions = r.vec3("bond_frames/node_positions", nodeStart.back());
+  const std::vector<Mat3> frameAxes = r.mat3("bond_frames/axes", framed.size());
+  for (std::size_t k = 0; k < frameAxes.size() && r.ok(); ++k)
+    if (!frameAxes[k].allFinite() || !(frameAxes[k].transpose() * frameAxes[k]).isApprox(Mat3::Identity(), 1e-9))
+      r.fail("checkpoint bond frame " + std::to_string(k) + "'s axes are not a rotation");
   std::vector<std::size_t> displacementStart{0};
   for (std::size_t k = 0; k < framed.size() && r.ok(); ++k) {
     const std::uint32_t b = framed[k];
     bool fits = b < nb && alive[b] && bodyKind[b] == static_cast<std::uint8_t>(BodyKind::Rigid) && (k == 0 || b > framed[k - 1]) &&
-                removedStart[k] <= removedStart[k + 1] && removedStart[k + 1] <= removedAll.size();
-    if (fits) displacementStart.push_back(displacementStart.back() + 6 * members[b].size());
-    for (std::size_t j = 0; fits && j < frameBonds[k].size(); ++j) {
-      const std::size_t e = frameBonds[k][j].index();
-      fits = connectors_.kind[e] == ConnectorKind::Bond && p.body[connectors_.a[e].index()].index() == b && p.body[connectors_.b[e].index()].index() == b;
-    }
+                removedStart[k] <= removedStart[k + 1] && removedStart[k + 1] <= removedAll.size() &&
+                frameNodes[k].size() >= members[b].size();
+    if (fits) displacementStart.push_back(displacementStart.back() + 6 * frameNodes[k].size());
+    for (std::size_t j = 0; fits && j < frameBonds[k].size(); ++j) fits = connectors_.kind[frameBonds[k][j].index()] == ConnectorKind::Bond;
     if (!fits) r.fail("checkpoint bond frame " + std::to_string(k) + " does not fit its body");
   }
   if (r.ok() && (removedStart.empty() || removedStart.front() != 0 || removedStart.back() != removedAll.size()))
@@ -498,7 +515,9 @@ Status World::restoreState(const StateArchive& archive) {
       const std::span<const std::uint32_t> removed(removedAll.data() + removedStart[frame], removedStart[frame + 1] - removedStart[frame]);
       const std::span<const double> u(displacements.data() + displacementStart[frame],
                                       displacementStart[frame + 1] - displacementStart[frame]);
-      if (!loads->replay(bodies_.info[id.index()], particles_, connectors_, frameBonds[frame], removed, u))
+      const std::vector<std::uint32_t> nodes = rawIds(std::span<const ParticleId>(frameNodes[frame]));
+      const std::span<const Vec3> positions(nodePositions.data() + nodeStart[frame], nodes.size());
+      if (!loads->replay(bodies_.info[id.index()], connectors_, nodes, positions, frameAxes[frame], frameBonds[frame], removed, u))
         return Error{"", 0, 0, "checkpoint bond frame " + std::to_string(frame) + " cannot be made again"};
       bondLoads_[id.index()] = std::move(loads);
       breakableRigid_.push_back(id);

@@ -349,7 +349,7 @@ TEST(Bonds, AFrameReplayedFromItsHistorySolvesBitForBitAsTheFrameItReplays) {
     live.solve(state, info, w.particles(), loads, out);
   }
   BondLoads replayed;
-  ASSERT_TRUE(replayed.replay(info, w.particles(), w.connectors(), bonds, live.removed(), live.displacements()));
+  ASSERT_TRUE(replayed.replay(info, w.connectors(), live.nodes(), live.nodePositions(), live.axes(), bonds, live.removed(), live.displacements()));
   for (Vec3& l : loads) l = Vec3(l.y(), -l.x(), l.z());
   std::vector<BondLoad> a, b;
   live.solve(state, info, w.particles(), loads, a);
@@ -365,7 +365,7 @@ TEST(Bonds, AFrameReplayedFromItsHistorySolvesBitForBitAsTheFrameItReplays) {
   }
   // without the displacements it started from, the same frame takes another path to the loads
   BondLoads cold;
-  ASSERT_TRUE(cold.replay(info, w.particles(), w.connectors(), bonds, live.removed(),
+  ASSERT_TRUE(cold.replay(info, w.connectors(), live.nodes(), live.nodePositions(), live.axes(), bonds, live.removed(),
                           std::vector<double>(live.displacements().size(), 0.0)));
   std::vector<BondLoad> c;
   cold.solve(state, info, w.particles(), loads, c);
@@ -375,11 +375,94 @@ TEST(Bonds, AFrameReplayedFromItsHistorySolvesBitForBitAsTheFrameItReplays) {
   // a history that does not fit the frame is refused
   const std::vector<std::uint32_t> outOfRange{static_cast<std::uint32_t>(bonds.size())};
   const std::vector<double> fits(live.displacements().size(), 0.0);
-  EXPECT_FALSE(BondLoads().replay(info, w.particles(), w.connectors(), bonds, outOfRange, fits));
+  EXPECT_FALSE(BondLoads().replay(info, w.connectors(), live.nodes(), live.nodePositions(), live.axes(), bonds, outOfRange, fits));
   const std::vector<std::uint32_t> twice{3, 3};
-  EXPECT_FALSE(BondLoads().replay(info, w.particles(), w.connectors(), bonds, twice, fits));
+  EXPECT_FALSE(BondLoads().replay(info, w.connectors(), live.nodes(), live.nodePositions(), live.axes(), bonds, twice, fits));
   const std::vector<double> tooFew(fits.size() - 6, 0.0);
-  EXPECT_FALSE(BondLoads().replay(info, w.particles(), w.connectors(), bonds, {}, tooFew));
+  EXPECT_FALSE(BondLoads().replay(info, w.connectors(), live.nodes(), live.nodePositions(), live.axes(), bonds, {}, tooFew));
+}
+
+// A split's largest piece keeps its parent's frame: the other pieces' bonds leave it, their nodes rest, and
+// the loads come into the frame's axes from the piece's (turned from the parent's). Its bonds' loads must be
+// those of a frame built for the piece alone, to the solver's agreement (each within 1e-3 of the largest).
+TEST(Bonds, AFrameKeptForTheLargestPieceGivesTheLoadsOfAFrameBuiltForIt) {
+  World w = test::worldFromString("dt: 0.004\nsteps: 1\nmaterials:\n  rock: {youngs_modulus: 1.0e9}\n"
+                                  "bodies:\n  - name: block\n    shape: {box: {size: [0.6, 0.6, 0.6]}}\n"
+                                  "    fill: {radius: 0.05}\n    connectors: bonds\n    material: rock\n");
+  const BodyInfo& info = w.bodies().info[0];
+  const BodyState& state = w.bodies().state[0];
+  const ConnectorStore& con = w.connectors();
+  const std::span<const ConnectorId> ids = w.bodyConnectors(BodyId(0u));
+  const std::vector<ConnectorId> bonds(ids.begin(), ids.end());
+  // the piece: the particles on one side of a plane across the block (about two thirds of them)
+  const ParticleStore& p = w.particles();
+  std::vector<std::uint8_t> inPiece(p.size(), 0);
+  BodyInfo piece = info;
+  piece.particles.clear();
+  std::vector<std::uint32_t> parentIndex;
+  for (std::size_t i = 0; i < info.particles.size(); ++i)
+    if (p.local[info.particles[i].index()].x() < 0.1) {
+      inPiece[info.particles[i].index()] = 1;
+      piece.particles.push_back(info.particles[i]);
+      parentIndex.push_back(static_cast<std::uint32_t>(i));
+    }
+  ASSERT_GT(2 * piece.particles.size(), info.particles.size());
+  ASSERT_LT(piece.particles.size(), info.particles.size());
+  std::vector<std::size_t> crossing;
+  std::vector<ConnectorId> pieceBonds;
+  std::vector<std::size_t> pieceEntry;  // each of the piece's bonds' entry in the parent's frame
+  for (std::size_t k = 0; k < bonds.size(); ++k) {
+    const bool a = inPiece[con.a[bonds[k].index()].index()] != 0, b = inPiece[con.b[bonds[k].index()].index()] != 0;
+    if (a != b) crossing.push_back(k);
+    if (a && b) {
+      pieceBonds.push_back(bonds[k]);
+      pieceEntry.push_back(k);
+    }
+  }
+  // the piece's own axes: the parent's turned by `turn`; its particles' local positions with them
+  const Mat3 turn = Eigen::AngleAxisd(0.7, Vec3(1.0, 2.0, -0.5).normalized()).toRotationMatrix();
+  ParticleStore turned = p;
+  for (const ParticleId q : piece.particles) turned.local[q.index()] = turn * p.local[q.index()];
+  BodyState pieceState = state;
+  pieceState.orientation = Quat(state.orientation.toRotationMatrix() * turn.transpose());
+  // self-equilibrated loads on the piece: opposite forces along its bonds
+  std::vector<Vec3> loads(p.size(), Vec3::Zero());
+  for (std::size_t k = 0; k < pieceBonds.size(); ++k) {
+    const std::size_t c = pieceBonds[k].index();
+    const Vec3 d = (p.position[con.b[c].index()] - p.position[con.a[c].index()]).normalized();
+    const double f = 100.0 * std::sin(1.7 * static_cast<double>(k));
+    loads[con.a[c].index()] -= f * d;
+    loads[con.b[c].index()] += f * d;
+  }
+  BondLoads kept;
+  ASSERT_TRUE(kept.build(info, p, con, bonds));
+  std::vector<BondLoad> before;
+  kept.solve(state, info, p, loads, before);  // (displacements to start from, as a parent's)
+  kept.remove(crossing);
+  kept.keepFor(parentIndex, turn);
+  EXPECT_EQ(kept.nodes().size(), info.particles.size());
+  BondLoads fresh;
+  ASSERT_TRUE(fresh.build(piece, turned, con, pieceBonds));
+  std::vector<BondLoad> a, b;
+  kept.solve(pieceState, piece, turned, loads, a);
+  fresh.solve(pieceState, piece, turned, loads, b);
+  double largest = 0.0;
+  for (const BondLoad& l : b) largest = std::max(largest, std::abs(l.axial));
+  ASSERT_GT(largest, 1.0);
+  for (std::size_t k = 0; k < pieceBonds.size(); ++k) {
+    EXPECT_NEAR(a[pieceEntry[k]].axial, b[k].axial, 2e-3 * largest) << "bond " << k;
+    EXPECT_NEAR(a[pieceEntry[k]].shear, b[k].shear, 2e-3 * largest) << "bond " << k;
+  }
+  // the bonds that left carry nothing
+  for (std::size_t k = 0; k < bonds.size(); ++k)
+    if (!inPiece[con.a[bonds[k].index()].index()] || !inPiece[con.b[bonds[k].index()].index()]) {
+      EXPECT_EQ(a[k].axial, 0.0) << "bond " << k;
+    }
+  // a piece whose particles are not all nodes of a checkpoint's frame is refused
+  std::vector<std::uint32_t> fewer(kept.nodes().begin(), kept.nodes().end() - 1);
+  std::vector<Vec3> fewerAt(kept.nodePositions().begin(), kept.nodePositions().end() - 1);
+  EXPECT_FALSE(BondLoads().replay(info, con, fewer, fewerAt, Mat3::Identity(), bonds, {},
+                                  std::vector<double>(6 * fewer.size(), 0.0)));
 }
 
 }  // namespace
