@@ -73,6 +73,27 @@ Eigen::Matrix<double, 12, 12> beamStiffness(const Vec3& e, double length, double
 
 }  // namespace
 
+namespace {
+
+/// (particle id, node) of `nodes`, sorted: a node's lookup by its particle (a fragment's ids are few and
+/// scattered, so no world-sized table).
+std::vector<std::pair<std::uint32_t, std::uint32_t>> nodesByParticle(std::span<const std::uint32_t> nodes) {
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> sorted(nodes.size());
+  for (std::size_t i = 0; i < nodes.size(); ++i) sorted[i] = {nodes[i], static_cast<std::uint32_t>(i)};
+  std::sort(sorted.begin(), sorted.end());
+  return sorted;
+}
+
+/// The node of particle `q` in a list made by nodesByParticle, or false where it is none.
+bool findNode(const std::vector<std::pair<std::uint32_t, std::uint32_t>>& sorted, std::size_t q, std::uint32_t& node) {
+  const auto it = std::lower_bound(sorted.begin(), sorted.end(), std::pair{static_cast<std::uint32_t>(q), 0u});
+  if (it == sorted.end() || it->first != q) return false;
+  node = it->second;
+  return true;
+}
+
+}  // namespace
+
 bool BondLoads::build(const BodyInfo& body, const ParticleStore& p, const ConnectorStore& c,
                       std::span<const ConnectorId> bonds) {
   const std::size_t n = body.particles.size();
@@ -99,25 +120,12 @@ bool BondLoads::buildFrame(std::span<const std::uint32_t> nodes, std::span<const
   nodePosition_.assign(positions.begin(), positions.end());
   if (bonds_.empty()) return false;
   const std::size_t n = nodes.size();
-  // particle id -> node, by a sorted list of the nodes' ids (a fragment's ids are few and scattered)
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> local(n);
-  for (std::size_t i = 0; i < n; ++i) local[i] = {nodes[i], static_cast<std::uint32_t>(i)};
-  std::sort(local.begin(), local.end());
-  bool found = true;
-  const auto localOf = [&](ParticleId q) {
-    const auto it = std::lower_bound(local.begin(), local.end(), std::pair{static_cast<std::uint32_t>(q.index()), 0u});
-    if (it == local.end() || it->first != q.index()) {
-      found = false;
-      return 0u;
-    }
-    return it->second;
-  };
+  const auto byParticle = nodesByParticle(nodes);
   beams_.reserve(bonds_.size());
   for (const ConnectorId id : bonds_) {
     const std::size_t k = id.index();
     Beam beam;
-    beam.a = localOf(c.a[k]);
-    beam.b = localOf(c.b[k]);
+    if (!findNode(byParticle, c.a[k].index(), beam.a) || !findNode(byParticle, c.b[k].index(), beam.b)) return false;
     const Vec3 d = positions[beam.b] - positions[beam.a];
     beam.length = d.norm();
     beam.e = d / beam.length;
@@ -129,7 +137,6 @@ bool BondLoads::buildFrame(std::span<const std::uint32_t> nodes, std::span<const
     beam.bending = e * inertia / beam.length;
     beams_.push_back(beam);
   }
-  if (!found) return false;
   // the pattern: each particle's bonded neighbours
   std::vector<std::uint32_t> neighbourStart(n + 1, 0), neighbours;
   {
@@ -212,16 +219,10 @@ bool BondLoads::replay(const BodyInfo& body, const ConnectorStore& connectors, s
     remove(std::span<const std::size_t>(&k, 1));
   }
   // the body's particles, each a node
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> local(nodes.size());
-  for (std::size_t i = 0; i < nodes.size(); ++i) local[i] = {nodes[i], static_cast<std::uint32_t>(i)};
-  std::sort(local.begin(), local.end());
+  const auto byParticle = nodesByParticle(nodes);
   bodyNode_.resize(body.particles.size());
-  for (std::size_t i = 0; i < body.particles.size(); ++i) {
-    const auto q = static_cast<std::uint32_t>(body.particles[i].index());
-    const auto it = std::lower_bound(local.begin(), local.end(), std::pair{q, 0u});
-    if (it == local.end() || it->first != q) return false;
-    bodyNode_[i] = it->second;
-  }
+  for (std::size_t i = 0; i < body.particles.size(); ++i)
+    if (!findNode(byParticle, body.particles[i].index(), bodyNode_[i])) return false;
   toFrame_ = axes;
   u_ = Eigen::Map<const Eigen::VectorXd>(displacements.data(), u_.size());
   return true;

@@ -25,6 +25,22 @@ double uniformDraw(std::uint64_t seed, std::uint64_t index) {
   return (static_cast<double>(z >> 11) + 0.5) * 0x1.0p-53;
 }
 
+/// What the intact connectors of a body among `ids` are: whether any is a bond, and whether any can break.
+struct IntactConnectors {
+  bool bonds = false, canBreak = false;
+};
+IntactConnectors intactConnectors(const ConnectorStore& c, std::span<const ConnectorId> ids) {
+  IntactConnectors out;
+  for (const ConnectorId id : ids) {
+    const std::size_t k = id.index();
+    if (c.broken[k]) continue;
+    out.bonds = out.bonds || c.kind[k] == ConnectorKind::Bond;
+    out.canBreak = out.canBreak || std::isfinite(c.breakLimit[k]) || std::isfinite(c.compressionLimit[k]) ||
+                   std::isfinite(c.tensileStrength[k]) || std::isfinite(c.shearStrength[k]);
+  }
+  return out;
+}
+
 }  // namespace
 
 ConnectorId World::addConnector(ParticleId a, ParticleId b, double rest, const ConnectorParams& params) {
@@ -44,17 +60,11 @@ void World::buildLattice(BodyId id) {
   rodForces_[id.index()].reset();
   bondLoads_[id.index()].reset();
   std::vector<ConnectorId> intact;
-  bool bonds = false, canBreak = false;
-  for (const ConnectorId c : bodyConnectors_[id.index()]) {
-    const std::size_t k = c.index();
-    if (connectors_.broken[k]) continue;
-    intact.push_back(c);
-    bonds = bonds || connectors_.kind[k] == ConnectorKind::Bond;
-    canBreak = canBreak || std::isfinite(connectors_.breakLimit[k]) || std::isfinite(connectors_.compressionLimit[k]) ||
-               std::isfinite(connectors_.tensileStrength[k]) || std::isfinite(connectors_.shearStrength[k]);
-  }
-  if (!canBreak || intact.empty()) return;  // (applyBreakage drops it from breakableRigid_)
-  if (bonds) {
+  for (const ConnectorId c : bodyConnectors_[id.index()])
+    if (!connectors_.broken[c.index()]) intact.push_back(c);
+  const IntactConnectors kinds = intactConnectors(connectors_, intact);
+  if (!kinds.canBreak) return;  // (nor where none is intact; applyBreakage drops it from breakableRigid_)
+  if (kinds.bonds) {
     bondLoads_[id.index()] = std::make_unique<BondLoads>();
     bondLoads_[id.index()]->build(bodies_.info[id.index()], particles_, connectors_, intact);
   } else {
@@ -261,13 +271,9 @@ void World::splitBody(BodyId parentId, std::span<const std::uint32_t> component,
     std::size_t largest = 0;
     for (std::size_t part = 1; part < components; ++part)
       if (partParticles[part].size() > partParticles[largest].size()) largest = part;
-    bool canBreak = false;
-    for (const ConnectorId c : partConnectors[largest]) {
-      const std::size_t k = c.index();
-      canBreak = canBreak || (connectors_.kind[k] == ConnectorKind::Bond && !connectors_.broken[k] &&
-                              (std::isfinite(connectors_.tensileStrength[k]) || std::isfinite(connectors_.shearStrength[k])));
-    }
-    if (canBreak && 2 * partParticles[largest].size() >= parentFrame->nodes().size()) heir = largest;
+    // (where buildLattice would make it a frame of bonds)
+    const IntactConnectors kinds = intactConnectors(connectors_, partConnectors[largest]);
+    if (kinds.bonds && kinds.canBreak && 2 * partParticles[largest].size() >= parentFrame->nodes().size()) heir = largest;
   }
   BodyId heirId;
   Mat3 heirTurn = Mat3::Identity();

@@ -319,13 +319,18 @@ TEST(Bonds, BrickWallRunsTheSameWithTheSameSeedAndDifferentlyWithAnother) {
   EXPECT_FALSE(a.particles().position == c.particles().position);
 }
 
+/// A bonded block of rock, 0.6 m a side, filled at 0.05 m (216 particles).
+World bondedBlock() {
+  return test::worldFromString("dt: 0.004\nsteps: 1\nmaterials:\n  rock: {youngs_modulus: 1.0e9}\n"
+                               "bodies:\n  - name: block\n    shape: {box: {size: [0.6, 0.6, 0.6]}}\n"
+                               "    fill: {radius: 0.05}\n    connectors: bonds\n    material: rock\n");
+}
+
 // A bonded body's frame changes in place while bonds come out (its multigrid hierarchy with it), and each
 // solve starts from the displacements of the last. A checkpoint keeps the frame's history and its
 // displacements instead of the matrices: replayed, it must solve bit for bit as the frame it replays.
 TEST(Bonds, AFrameReplayedFromItsHistorySolvesBitForBitAsTheFrameItReplays) {
-  World w = test::worldFromString("dt: 0.004\nsteps: 1\nmaterials:\n  rock: {youngs_modulus: 1.0e9}\n"
-                                  "bodies:\n  - name: block\n    shape: {box: {size: [0.6, 0.6, 0.6]}}\n"
-                                  "    fill: {radius: 0.05}\n    connectors: bonds\n    material: rock\n");
+  World w = bondedBlock();
   const BodyInfo& info = w.bodies().info[0];
   const BodyState& state = w.bodies().state[0];
   const std::span<const ConnectorId> ids = w.bodyConnectors(BodyId(0u));
@@ -386,9 +391,7 @@ TEST(Bonds, AFrameReplayedFromItsHistorySolvesBitForBitAsTheFrameItReplays) {
 // the loads come into the frame's axes from the piece's (turned from the parent's). Its bonds' loads must be
 // those of a frame built for the piece alone, to the solver's agreement (each within 1e-3 of the largest).
 TEST(Bonds, AFrameKeptForTheLargestPieceGivesTheLoadsOfAFrameBuiltForIt) {
-  World w = test::worldFromString("dt: 0.004\nsteps: 1\nmaterials:\n  rock: {youngs_modulus: 1.0e9}\n"
-                                  "bodies:\n  - name: block\n    shape: {box: {size: [0.6, 0.6, 0.6]}}\n"
-                                  "    fill: {radius: 0.05}\n    connectors: bonds\n    material: rock\n");
+  World w = bondedBlock();
   const BodyInfo& info = w.bodies().info[0];
   const BodyState& state = w.bodies().state[0];
   const ConnectorStore& con = w.connectors();
