@@ -179,10 +179,23 @@ bool BondLoads::buildFrame(std::span<const std::uint32_t> nodes, std::span<const
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 6; ++k) k_.block[k_.diagonal[i]](k, k) += 1e-9 * (k < 3 ? maxMove : maxTurn);
   multigrid_.build(k_, nodePosition_);
+  // the beams at each node, for solveAround()
+  beamStart_.assign(n + 1, 0);
+  for (const Beam& b : beams_) ++beamStart_[b.a + 1], ++beamStart_[b.b + 1];
+  for (std::size_t i = 0; i < n; ++i) beamStart_[i + 1] += beamStart_[i];
+  nodeBeams_.resize(beamStart_[n]);
+  {
+    std::vector<std::uint32_t> fill(beamStart_.begin(), beamStart_.end() - 1);
+    for (std::uint32_t k = 0; k < beams_.size(); ++k) nodeBeams_[fill[beams_[k].a]++] = k, nodeBeams_[fill[beams_[k].b]++] = k;
+  }
+  mark_.assign(n, 0);
+  regionStamp_ = 0;
+  region_.clear();
+  region_.reserve(n);
   const auto dofs = static_cast<Eigen::Index>(6 * n);
   f_.setZero(dofs);
   u_.setZero(dofs);
-  r_.resize(dofs);
+  r_.setZero(dofs);
   z_.resize(dofs);
   p_.resize(dofs);
   q_.resize(dofs);
@@ -201,6 +214,16 @@ void BondLoads::remove(std::span<const std::size_t> entries) {
     multigrid_.change(k_, beam.a, beam.a, ke.block<6, 6>(0, 0));
     multigrid_.change(k_, beam.b, beam.b, ke.block<6, 6>(6, 6));
     multigrid_.change(k_, beam.a, beam.b, ke.block<6, 6>(0, 6));
+    // the residual f - K u loses the beam's forces (-ke is its stiffness)
+    Vec12 ends;
+    ends << u_.segment<6>(6 * static_cast<Eigen::Index>(beam.a)), u_.segment<6>(6 * static_cast<Eigen::Index>(beam.b));
+    const Vec12 forces = -ke * ends;
+    residualSquared_ -= r_.segment<6>(6 * static_cast<Eigen::Index>(beam.a)).squaredNorm() +
+                        r_.segment<6>(6 * static_cast<Eigen::Index>(beam.b)).squaredNorm();
+    r_.segment<6>(6 * static_cast<Eigen::Index>(beam.a)) += forces.head<6>();
+    r_.segment<6>(6 * static_cast<Eigen::Index>(beam.b)) += forces.tail<6>();
+    residualSquared_ += r_.segment<6>(6 * static_cast<Eigen::Index>(beam.a)).squaredNorm() +
+                        r_.segment<6>(6 * static_cast<Eigen::Index>(beam.b)).squaredNorm();
     beam.active = false;
     removed_.push_back(static_cast<std::uint32_t>(k));
   }
@@ -289,7 +312,8 @@ void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleSt
   // fixed chunks: the same bits for any number of threads)
   iterations_ = 0;
   const auto dot = [&](const Eigen::VectorXd& x, const Eigen::VectorXd& y) { return chunkedDot(x, y, pool, partial_); };
-  const double target = kTolerance * kTolerance * dot(f_, f_);
+  loadSquared_ = dot(f_, f_);
+  const double target = kTolerance * kTolerance * loadSquared_;
   k_.multiply(u_, q_, pool);
   r_ = f_ - q_;
   if (dot(r_, r_) > target) {
@@ -308,28 +332,136 @@ void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleSt
       p_ = z_ + beta * p_;
     }
   }
+  residualSquared_ = dot(r_, r_);
   out.resize(beams_.size());
-  for (std::size_t k = 0; k < beams_.size(); ++k) {
-    const Beam& beam = beams_[k];
-    if (!beam.active) {
-      out[k] = BondLoad{};
-      continue;
-    }
-    // the strains of strainMap(), term by term
-    const auto a = static_cast<Eigen::Index>(6 * beam.a), b = static_cast<Eigen::Index>(6 * beam.b);
-    const Vec3 du = u_.segment<3>(b) - u_.segment<3>(a);
-    const Vec3 ta = u_.segment<3>(a + 3), tb = u_.segment<3>(b + 3);
-    const Vec3 chord = beam.e.cross(du) / beam.length;
-    const double stretch = beam.e.dot(du), twist = beam.e.dot(tb - ta);
-    const Vec3 psiA = ta - beam.e * beam.e.dot(ta) - chord, psiB = tb - beam.e * beam.e.dot(tb) - chord;
-    const Vec3 ma = beam.bending * (4.0 * psiA + 2.0 * psiB), mb = beam.bending * (2.0 * psiA + 4.0 * psiB);
-    BondLoad& l = out[k];
-    l.axial = beam.axial * stretch;
-    l.torsion = std::abs(beam.torsion * twist);
-    l.bending = std::max(ma.norm(), mb.norm());
-    l.shear = (ma + mb).norm() / beam.length;
-    l.energy = 0.5 * (beam.axial * stretch * stretch + beam.torsion * twist * twist + psiA.dot(ma) + psiB.dot(mb));
-  }
+  for (std::size_t k = 0; k < beams_.size(); ++k) out[k] = beams_[k].active ? beamLoad(beams_[k]) : BondLoad{};
 }
 
+BondLoad BondLoads::beamLoad(const Beam& beam) const {
+  // the strains of strainMap(), term by term
+  const auto a = static_cast<Eigen::Index>(6 * beam.a), b = static_cast<Eigen::Index>(6 * beam.b);
+  const Vec3 du = u_.segment<3>(b) - u_.segment<3>(a);
+  const Vec3 ta = u_.segment<3>(a + 3), tb = u_.segment<3>(b + 3);
+  const Vec3 chord = beam.e.cross(du) / beam.length;
+  const double stretch = beam.e.dot(du), twist = beam.e.dot(tb - ta);
+  const Vec3 psiA = ta - beam.e * beam.e.dot(ta) - chord, psiB = tb - beam.e * beam.e.dot(tb) - chord;
+  const Vec3 ma = beam.bending * (4.0 * psiA + 2.0 * psiB), mb = beam.bending * (2.0 * psiA + 4.0 * psiB);
+  BondLoad l;
+  l.axial = beam.axial * stretch;
+  l.torsion = std::abs(beam.torsion * twist);
+  l.bending = std::max(ma.norm(), mb.norm());
+  l.shear = (ma + mb).norm() / beam.length;
+  l.energy = 0.5 * (beam.axial * stretch * stretch + beam.torsion * twist * twist + psiA.dot(ma) + psiB.dot(mb));
+  return l;
+}
+
+void BondLoads::solveAround(std::span<const std::size_t> entries, const BodyState& s, const BodyInfo& body,
+                            const ParticleStore& p, std::span<const Vec3> loads, std::vector<BondLoad>& out,
+                            std::vector<std::uint32_t>& changed, ThreadPool* pool) {
+  const std::size_t n = nodeParticle_.size();
+  const auto whole = [&] {
+    solve(s, body, p, loads, out, pool);
+    changed.resize(beams_.size());
+    for (std::uint32_t k = 0; k < beams_.size(); ++k) changed[k] = k;
+  };
+  if (multigrid_.levels() < 2) return whole();
+  const auto node = [](std::uint32_t i) { return 6 * static_cast<Eigen::Index>(i); };
+  const auto squared = [&](std::size_t from, std::size_t to) {  // sum of r_i . r_i over region_[from, to)
+    double sum = 0.0;
+    for (std::size_t i = from; i < to; ++i) sum += r_.segment<6>(node(region_[i])).squaredNorm();
+    return sum;
+  };
+  // the residual the removed bonds left (their forces, on their ends)
+  double changeSquared = 0.0;
+  for (const std::size_t e : entries)
+    changeSquared += r_.segment<6>(node(beams_[e].a)).squaredNorm() + r_.segment<6>(node(beams_[e].b)).squaredNorm();
+  // solved where the whole frame's residual is within solve()'s tolerance or kPassTolerance of that
+  const double target = std::max(kTolerance * kTolerance * loadSquared_, kPassTolerance * kPassTolerance * changeSquared);
+  std::size_t interior = 0;  // region_[0, interior): the region; the rest, its rim
+  std::uint32_t inside = 0;
+  for (int rings = kRegionRings;; rings *= 2) {
+    // the region: the removed bonds' ends and the nodes within `rings` bonds of them (the stiffness's pattern),
+    // then its rim (the nodes one bond further), whose residual the region's change reaches
+    if (regionStamp_ > 0xfffffff0u) {
+      std::fill(mark_.begin(), mark_.end(), 0u);
+      regionStamp_ = 0;
+    }
+    regionStamp_ += 2;
+    inside = regionStamp_;
+    const std::uint32_t rim = regionStamp_ + 1;
+    region_.clear();
+    const auto reach = [&](std::uint32_t i, std::uint32_t stamp) {
+      if (mark_[i] == inside || mark_[i] == rim) return;
+      mark_[i] = stamp;
+      region_.push_back(i);
+    };
+    for (const std::size_t e : entries) {
+      reach(beams_[e].a, inside);
+      reach(beams_[e].b, inside);
+    }
+    std::size_t frontier = 0;
+    for (int ring = 0; ring <= rings; ++ring) {
+      const std::size_t end = region_.size();
+      if (4 * end >= n) return whole();  // (from the displacements so far)
+      for (std::size_t i = frontier; i < end; ++i)
+        for (std::uint32_t k = k_.start[region_[i]]; k < k_.start[region_[i] + 1]; ++k)
+          reach(k_.column[k], ring < rings ? inside : rim);
+      frontier = end;
+    }
+    interior = frontier;
+    // conjugate gradients on the region, block Jacobi, the rim's and the rest's displacements held; r_ stays
+    // f - K u everywhere (the rim's rows take the region's change too), and the whole frame's residual is
+    // what it was outside the region and its rim plus what it is on them now
+    const double outside = std::max(0.0, residualSquared_ - squared(0, region_.size()));
+    double regionPart = squared(0, interior), total = outside + regionPart + squared(interior, region_.size());
+    const auto regionDot = [&](const Eigen::VectorXd& x, const Eigen::VectorXd& y) {
+      double sum = 0.0;
+      for (std::size_t i = 0; i < interior; ++i) sum += x.segment<6>(node(region_[i])).dot(y.segment<6>(node(region_[i])));
+      return sum;
+    };
+    if (total > target && regionPart > 0.25 * target) {
+      for (std::size_t i = 0; i < interior; ++i)
+        p_.segment<6>(node(region_[i])) = z_.segment<6>(node(region_[i])) =
+            multigrid_.fineDiagonalInverse(region_[i]) * r_.segment<6>(node(region_[i]));
+      double rz = regionDot(r_, z_);
+      for (int iteration = 0; iteration < kMaxIterations && total > target && regionPart > 0.25 * target; ++iteration) {
+        // q = K p over the region's and the rim's rows, from the region's columns
+        for (const std::uint32_t i : region_) {
+          Vec6 sum = Vec6::Zero();
+          for (std::uint32_t k = k_.start[i]; k < k_.start[i + 1]; ++k)
+            if (mark_[k_.column[k]] == inside) sum += k_.block[k] * p_.segment<6>(node(k_.column[k]));
+          q_.segment<6>(node(i)) = sum;
+        }
+        const double step = rz / regionDot(p_, q_);
+        for (std::size_t i = 0; i < interior; ++i) u_.segment<6>(node(region_[i])) += step * p_.segment<6>(node(region_[i]));
+        for (const std::uint32_t i : region_) r_.segment<6>(node(i)) -= step * q_.segment<6>(node(i));
+        for (std::size_t i = 0; i < interior; ++i)
+          z_.segment<6>(node(region_[i])) = multigrid_.fineDiagonalInverse(region_[i]) * r_.segment<6>(node(region_[i]));
+        const double rzNew = regionDot(r_, z_);
+        const double beta = rzNew / rz;
+        rz = rzNew;
+        for (std::size_t i = 0; i < interior; ++i)
+          p_.segment<6>(node(region_[i])) = z_.segment<6>(node(region_[i])) + beta * p_.segment<6>(node(region_[i]));
+        regionPart = squared(0, interior);
+        total = outside + regionPart + squared(interior, region_.size());
+      }
+    }
+    residualSquared_ = total;
+    // solved where the whole frame's residual is within the tolerance; else what is left lies on the rim (or
+    // the iterations ran out): a region twice as wide takes it on
+    if (total <= target) break;
+  }
+  // the loads of the bonds with an end in the region, each once
+  changed.clear();
+  out.resize(beams_.size());
+  for (std::size_t i = 0; i < interior; ++i)
+    for (std::uint32_t j = beamStart_[region_[i]]; j < beamStart_[region_[i] + 1]; ++j) {
+      const std::uint32_t k = nodeBeams_[j];
+      const Beam& beam = beams_[k];
+      const std::uint32_t other = beam.a == region_[i] ? beam.b : beam.a;
+      if (mark_[other] == inside && other < region_[i]) continue;  // (counted from its other end)
+      changed.push_back(k);
+      out[k] = beam.active ? beamLoad(beam) : BondLoad{};
+    }
+}
 }  // namespace volpar

@@ -94,6 +94,20 @@ class BondLoads {
   /// Takes broken bonds (entries of bonds()) out of the frame; their loads are zero from then on.
   void remove(std::span<const std::size_t> entries);
 
+  /// After remove(`entries`) under the loads of the last solve(): solves again where the removed bonds
+  /// change the displacements. A region, the nodes within kRegionRings bonds of a removed bond's ends, is solved
+  /// by conjugate gradients (block Jacobi), the other nodes held; where what is left of the whole frame's
+  /// residual, on the region's rim, is above solve()'s tolerance, a region twice as wide goes on from there,
+  /// until the whole frame's residual is within it: the displacements are then a solution as good as solve()'s.
+  /// The loads of the bonds with an end in the last region are written to `out` and their entries to
+  /// `changed`; the other bonds' loads are as they were. Costs O(the region's bonds) an iteration; where the
+  /// region would hold a quarter of the nodes or more, it is solve() itself (and every entry changed).
+  void solveAround(std::span<const std::size_t> entries, const BodyState& s, const BodyInfo& body,
+                   const ParticleStore& particles, std::span<const Vec3> loads, std::vector<BondLoad>& out,
+                   std::vector<std::uint32_t>& changed, ThreadPool* pool = nullptr);
+  static constexpr int kRegionRings = 4;
+  static constexpr double kPassTolerance = 1e-2;  // of the residual the removed bonds leave, solveAround()'s
+
   [[nodiscard]] std::span<const ConnectorId> bonds() const { return bonds_; }
   /// The entries removed since build(), in order: with bonds() and displacements(), what makes the same frame
   /// again (replay), bit for bit.
@@ -128,6 +142,8 @@ class BondLoads {
     bool active = true;
   };
 
+  /// The loads of an active beam, from the displacements u_.
+  [[nodiscard]] BondLoad beamLoad(const Beam& beam) const;
   /// The frame of `nodes` at `positions` from `bonds` (build() and replay()).
   bool buildFrame(std::span<const std::uint32_t> nodes, std::span<const Vec3> positions, const ConnectorStore& connectors,
                   std::span<const ConnectorId> bonds);
@@ -143,6 +159,12 @@ class BondLoads {
   std::vector<std::uint32_t> removed_;  // entries removed since build(), in order
   Eigen::VectorXd f_, u_, r_, z_, p_, q_;
   std::vector<double> partial_;  // (chunkedDot's)
+  double loadSquared_ = 0.0;     // f . f of the last solve
+  double residualSquared_ = 0.0;  // r_ . r_, kept through remove() and solveAround()
+  std::vector<std::uint32_t> beamStart_, nodeBeams_;  // the beams at each node (CSR)
+  std::vector<std::uint32_t> mark_;    // per node: regionStamp_ in solveAround()'s region, + 1 on its rim
+  std::uint32_t regionStamp_ = 0;
+  std::vector<std::uint32_t> region_;  // solveAround()'s region, then its rim
   int iterations_ = 0;
 };
 

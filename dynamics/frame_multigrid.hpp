@@ -78,6 +78,8 @@ class FrameMultigrid {
   void apply(const BlockMatrix6& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z, ThreadPool* pool = nullptr);
 
   [[nodiscard]] std::size_t levels() const { return levels_.size() + 1; }
+  /// The inverse of the fine matrix's diagonal block of `node` (the smoother's); only where levels() > 1.
+  [[nodiscard]] const Block6& fineDiagonalInverse(std::uint32_t node) const { return levels_[0].diagonalInverse[node]; }
   /// Bytes the hierarchy holds (its coarse matrices and aggregates).
   [[nodiscard]] std::size_t bytes() const;
 

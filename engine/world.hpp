@@ -337,6 +337,8 @@ class World {
   };
   LargeVector<Overload> overloaded_;  // this pass's overloaded connectors of one body
   LargeVector<std::size_t> brokenEntries_;
+  std::vector<std::uint32_t> changedBonds_;       // the entries a pass solved around its breaks changed
+  LargeVector<std::uint8_t> bondChanged_;         // per entry of the body's frame, during a pass
   LargeVector<double> deformableForces_;                    // [C] XPBD connector forces [N]
   std::vector<BreakEvent> breakEvents_;
   double breakageEnergy_ = 0.0;

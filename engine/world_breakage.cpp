@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <numeric>
 #include <string>
@@ -87,42 +89,49 @@ void World::applyBreakage() {
   // Fragments made join the list and are judged in this step under the same loads.
   constexpr double kCriticalBand = 0.8;
   constexpr int kMaxPasses = 64;  // then every overloaded connector breaks at once
+  // A pass after one that broke bonds of a frame solves again only around those bonds
+  // (BondLoads::solveAround), and judges only the bonds whose loads that changed; once no bond is
+  // overloaded, the whole frame is solved again, and the passes go on from what that finds.
   for (std::size_t k = 0; k < breakableRigid_.size(); ++k) {
     const BodyId id = breakableRigid_[k];
+    bool solvedAround = false;  // the last pass solved only around its breaks
     for (int pass = 0; bodies_.info[id.index()].alive && breakable(id); ++pass) {
-      overloaded_.clear();
-      double worst = 0.0;
-      const auto overload = [&](std::size_t entry, ConnectorId cid, double ratio, double value, BreakMode mode, double energy) {
-        overloaded_.push_back({cid, entry, ratio, value, energy, mode});
-        worst = std::max(worst, ratio);
-      };
-      if (BondLoads* bl = bondLoads_[id.index()].get()) {
-        bl->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, bondLoadScratch_, pool_.get());
+      BondLoads* bl = bondLoads_[id.index()].get();
+      const auto judgeBond = [&](std::size_t r) {
         const std::span<const ConnectorId> bonds = bl->bonds();
-        for (std::size_t r = 0; r < bonds.size(); ++r) {
-          const std::size_t c = bonds[r].index();
-          const BondStress stress = bondStress(bondLoadScratch_[r], connectors_.bondRadius[c]);
-          const BondFailure failure = bondFailure(stress, connectors_.tensileStrength[c], connectors_.shearStrength[c]);
-          if (failure == BondFailure::None) continue;
-          const double ratio = std::max(stress.tensile / connectors_.tensileStrength[c], stress.shear / connectors_.shearStrength[c]);
-          // the energy it held when the stress reached its strength (energy grows with the load squared)
-          const double energy = bondLoadScratch_[r].energy / (ratio * ratio);
-          if (failure == BondFailure::Tension) overload(r, bonds[r], ratio, stress.tensile, BreakMode::Tension, energy);
-          else overload(r, bonds[r], ratio, stress.shear, BreakMode::Shear, energy);
+        const std::size_t c = bonds[r].index();
+        const BondStress stress = bondStress(bondLoadScratch_[r], connectors_.bondRadius[c]);
+        const BondFailure failure = bondFailure(stress, connectors_.tensileStrength[c], connectors_.shearStrength[c]);
+        if (failure == BondFailure::None) return;
+        const double ratio = std::max(stress.tensile / connectors_.tensileStrength[c], stress.shear / connectors_.shearStrength[c]);
+        // the energy it held when the stress reached its strength (energy grows with the load squared)
+        const double energy = bondLoadScratch_[r].energy / (ratio * ratio);
+        if (failure == BondFailure::Tension) overloaded_.push_back({bonds[r], r, ratio, stress.tensile, energy, BreakMode::Tension});
+        else overloaded_.push_back({bonds[r], r, ratio, stress.shear, energy, BreakMode::Shear});
+      };
+      if (bl) {
+        if (!solvedAround || overloaded_.empty()) {
+          bl->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, bondLoadScratch_, pool_.get());
+          overloaded_.clear();
+          for (std::size_t r = 0; r < bl->bonds().size(); ++r) judgeBond(r);
+          solvedAround = false;
         }
       } else if (RodForces* rf = rodForces_[id.index()].get()) {
+        overloaded_.clear();
         rf->solve(bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_, rodForceScratch_);
         const std::span<const ConnectorId> rods = rf->rods();
         for (std::size_t r = 0; r < rods.size(); ++r) {
           const std::size_t c = rods[r].index();
           // tension above the tensile strength, or compression above the compressive strength
           const double f = rodForceScratch_[r];
-          if (f > connectors_.breakLimit[c]) overload(r, rods[r], f / connectors_.breakLimit[c], f, BreakMode::Tension, 0.0);
+          if (f > connectors_.breakLimit[c]) overloaded_.push_back({rods[r], r, f / connectors_.breakLimit[c], f, 0.0, BreakMode::Tension});
           else if (-f > connectors_.compressionLimit[c])
-            overload(r, rods[r], -f / connectors_.compressionLimit[c], f, BreakMode::Compression, 0.0);
+            overloaded_.push_back({rods[r], r, -f / connectors_.compressionLimit[c], f, 0.0, BreakMode::Compression});
         }
       }
       if (overloaded_.empty()) break;
+      double worst = 0.0;
+      for (const Overload& o : overloaded_) worst = std::max(worst, o.ratio);
       const double cut = pass + 1 < kMaxPasses ? std::max(1.0, kCriticalBand * worst) : 0.0;
       brokenEntries_.clear();
       for (const Overload& o : overloaded_) {
@@ -140,9 +149,28 @@ void World::applyBreakage() {
       std::vector<std::uint32_t> component;
       const std::size_t parts =
           connectedComponents(bodies_.info[id.index()].particles, connectors_, bodyConnectors_[id.index()], component);
-      if (parts > 1) splitBody(id, component, parts);  // (retires it; its fragments are judged further down the list)
-      else if (bondLoads_[id.index()]) bondLoads_[id.index()]->remove(brokenEntries_);
-      else buildLattice(id);
+      if (parts > 1) {
+        splitBody(id, component, parts);  // (retires it; its fragments are judged further down the list)
+      } else if (bl) {
+        bl->remove(brokenEntries_);
+        bl->solveAround(brokenEntries_, bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_,
+                        bondLoadScratch_, changedBonds_, pool_.get());
+        // the overloaded bonds that broke or whose loads changed leave the list; those changed are judged again
+        bondChanged_.resize(bl->bonds().size(), 0);
+        for (const std::uint32_t r : changedBonds_) bondChanged_[r] = 1;
+        overloaded_.erase(std::remove_if(overloaded_.begin(), overloaded_.end(),
+                                         [&](const Overload& o) {
+                                           return bondChanged_[o.entry] || connectors_.broken[o.connector.index()];
+                                         }),
+                          overloaded_.end());
+        for (const std::uint32_t r : changedBonds_) {
+          bondChanged_[r] = 0;
+          if (!connectors_.broken[bl->bonds()[r].index()]) judgeBond(r);
+        }
+        solvedAround = true;
+      } else {
+        buildLattice(id);
+      }
     }
   }
   // deformable bodies: springs past their strain limit, rods past their strength
