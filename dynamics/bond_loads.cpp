@@ -287,7 +287,8 @@ std::size_t BondLoads::bytes() const {
   return bonds_.size() * sizeof(ConnectorId) + beams_.size() * sizeof(Beam) + removed_.size() * 4 +
          (nodeParticle_.size() + bodyNode_.size()) * 4 + nodePosition_.size() * sizeof(Vec3) +
          k_.block.size() * sizeof(Block6) + (k_.column.size() + k_.start.size() + k_.diagonal.size()) * 4 + multigrid_.bytes() +
-         6 * static_cast<std::size_t>(u_.size()) * sizeof(double);
+         6 * static_cast<std::size_t>(u_.size()) * sizeof(double) +
+         (beamStart_.size() + nodeBeams_.size() + mark_.size() + region_.capacity()) * 4;
 }
 
 void BondLoads::solve(const BodyState& s, const BodyInfo& body, const ParticleStore& p, std::span<const Vec3> loads,
@@ -353,6 +354,37 @@ BondLoad BondLoads::beamLoad(const Beam& beam) const {
   l.shear = (ma + mb).norm() / beam.length;
   l.energy = 0.5 * (beam.axial * stretch * stretch + beam.torsion * twist * twist + psiA.dot(ma) + psiB.dot(mb));
   return l;
+}
+
+bool BondLoads::endsJoined(std::span<const std::size_t> entries) {
+  for (const std::size_t e : entries) {
+    const std::uint32_t from = beams_[e].a, to = beams_[e].b;
+    if (regionStamp_ > 0xfffffff0u) {
+      std::fill(mark_.begin(), mark_.end(), 0u);
+      regionStamp_ = 0;
+    }
+    regionStamp_ += 2;
+    region_.clear();
+    region_.push_back(from);
+    mark_[from] = regionStamp_;
+    bool found = false;
+    // breadth first from `from` over the active beams, until `to`, the budget, or the end of its piece
+    for (std::size_t head = 0; head < region_.size() && !found && region_.size() < kJoinSearch; ++head)
+      for (std::uint32_t j = beamStart_[region_[head]]; j < beamStart_[region_[head] + 1]; ++j) {
+        const Beam& beam = beams_[nodeBeams_[j]];
+        if (!beam.active) continue;
+        const std::uint32_t next = beam.a == region_[head] ? beam.b : beam.a;
+        if (next == to) {
+          found = true;
+          break;
+        }
+        if (mark_[next] == regionStamp_) continue;
+        mark_[next] = regionStamp_;
+        region_.push_back(next);
+      }
+    if (!found) return false;
+  }
+  return true;
 }
 
 void BondLoads::solveAround(std::span<const std::size_t> entries, const BodyState& s, const BodyInfo& body,

@@ -105,6 +105,11 @@ class BondLoads {
   void solveAround(std::span<const std::size_t> entries, const BodyState& s, const BodyInfo& body,
                    const ParticleStore& particles, std::span<const Vec3> loads, std::vector<BondLoad>& out,
                    std::vector<std::uint32_t>& changed, ThreadPool* pool = nullptr);
+  /// Whether the two ends of each of `entries` are still joined through the frame's active bonds, found by
+  /// searching at most kJoinSearch nodes out from one end: false where a search ran out or found the end's
+  /// piece complete without the other (then the body may have split). O(entries) searches of bounded size.
+  [[nodiscard]] bool endsJoined(std::span<const std::size_t> entries);
+  static constexpr std::size_t kJoinSearch = 64;
   static constexpr int kRegionRings = 4;
   static constexpr double kPassTolerance = 1e-2;  // of the residual the removed bonds leave, solveAround()'s
 

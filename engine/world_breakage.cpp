@@ -146,13 +146,17 @@ void World::applyBreakage() {
         seeds_.push_back(connectors_.b[c]);
       }
       anyBroken = true;
+      // whether the body split: where a frame finds each broken bond's ends still joined near it, it did not
+      // (O(the broken bonds)); else the connected components of what is left (O(the body))
+      if (bl) bl->remove(brokenEntries_);
       std::vector<std::uint32_t> component;
       const std::size_t parts =
-          connectedComponents(bodies_.info[id.index()].particles, connectors_, bodyConnectors_[id.index()], component);
+          bl && bl->endsJoined(brokenEntries_)
+              ? 1
+              : connectedComponents(bodies_.info[id.index()].particles, connectors_, bodyConnectors_[id.index()], component);
       if (parts > 1) {
         splitBody(id, component, parts);  // (retires it; its fragments are judged further down the list)
       } else if (bl) {
-        bl->remove(brokenEntries_);
         bl->solveAround(brokenEntries_, bodies_.state[id.index()], bodies_.info[id.index()], particles_, loads_,
                         bondLoadScratch_, changedBonds_, pool_.get());
         // the overloaded bonds that broke or whose loads changed leave the list; those changed are judged again
