@@ -106,7 +106,13 @@ case "${1:-}" in
     ;;
   demo)
     install_deps
-    build release
+    # the command line tool and the Python module (where CMake made it a target); the tests and benchmarks
+    # are the test and bench commands' to build
+    cmake --preset release
+    targets=(volpar)
+    available=$(cmake --build --preset release --target help)
+    if grep -q '^volpar_python:' <<<"$available"; then targets+=(volpar_python); fi
+    cmake --build --preset release --target "${targets[@]}"
     build/release/tools/volpar run scenes/examples/demo.yaml -o build/demo.h5
     build/release/tools/volpar inspect build/demo.h5
     echo "setup: trajectory build/demo.h5; open build/demo.xdmf2 in ParaView"
