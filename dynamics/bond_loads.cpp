@@ -159,25 +159,22 @@ bool BondLoads::buildFrame(std::span<const std::uint32_t> nodes, std::span<const
     neighbours.resize(out);
   }
   k_.setPattern(neighbourStart, neighbours);
-  for (Beam& beam : beams_) {
+  for (const Beam& beam : beams_) {
     const Eigen::Matrix<double, 12, 12> ke = beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending);
-    beam.ab = k_.find(beam.a, beam.b);
-    beam.ba = k_.find(beam.b, beam.a);
-    k_.block[k_.diagonal[beam.a]] += ke.block<6, 6>(0, 0);
-    k_.block[k_.diagonal[beam.b]] += ke.block<6, 6>(6, 6);
-    k_.block[beam.ab] += ke.block<6, 6>(0, 6);
-    k_.block[beam.ba] += ke.block<6, 6>(6, 0);
+    k_.diagonalBlock[beam.a] += ke.block<6, 6>(0, 0);
+    k_.diagonalBlock[beam.b] += ke.block<6, 6>(6, 6);
+    k_.addCoupling(beam.a, beam.b, beam.e, beam.length, beam.axial, beam.torsion, beam.bending, 1.0);
   }
   // the six rigid-body modes make K singular; a tiny regularisation (per kind of freedom, which differ in
   // units) picks the solution without rigid motion and leaves a self-equilibrated load's deformations as they are
   double maxMove = 0.0, maxTurn = 0.0;
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) {
-      maxMove = std::max(maxMove, k_.block[k_.diagonal[i]](k, k));
-      maxTurn = std::max(maxTurn, k_.block[k_.diagonal[i]](3 + k, 3 + k));
+      maxMove = std::max(maxMove, k_.diagonalBlock[i](k, k));
+      maxTurn = std::max(maxTurn, k_.diagonalBlock[i](3 + k, 3 + k));
     }
   for (std::size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 6; ++k) k_.block[k_.diagonal[i]](k, k) += 1e-9 * (k < 3 ? maxMove : maxTurn);
+    for (int k = 0; k < 6; ++k) k_.diagonalBlock[i](k, k) += 1e-9 * (k < 3 ? maxMove : maxTurn);
   multigrid_.build(k_, nodePosition_);
   // the beams at each node, for solveAround()
   beamStart_.assign(n + 1, 0);
@@ -207,10 +204,9 @@ void BondLoads::remove(std::span<const std::size_t> entries) {
     Beam& beam = beams_[k];
     if (!beam.active) continue;
     const Eigen::Matrix<double, 12, 12> ke = -beamStiffness(beam.e, beam.length, beam.axial, beam.torsion, beam.bending);
-    k_.block[k_.diagonal[beam.a]] += ke.block<6, 6>(0, 0);
-    k_.block[k_.diagonal[beam.b]] += ke.block<6, 6>(6, 6);
-    k_.block[beam.ab] += ke.block<6, 6>(0, 6);
-    k_.block[beam.ba] += ke.block<6, 6>(6, 0);
+    k_.diagonalBlock[beam.a] += ke.block<6, 6>(0, 0);
+    k_.diagonalBlock[beam.b] += ke.block<6, 6>(6, 6);
+    k_.addCoupling(beam.a, beam.b, beam.e, beam.length, beam.axial, beam.torsion, beam.bending, -1.0);
     multigrid_.change(k_, beam.a, beam.a, ke.block<6, 6>(0, 0));
     multigrid_.change(k_, beam.b, beam.b, ke.block<6, 6>(6, 6));
     multigrid_.change(k_, beam.a, beam.b, ke.block<6, 6>(0, 6));
@@ -286,7 +282,7 @@ void BondLoads::startFrom(const BondLoads& parent, std::span<const std::uint32_t
 std::size_t BondLoads::bytes() const {
   return bonds_.size() * sizeof(ConnectorId) + beams_.size() * sizeof(Beam) + removed_.size() * 4 +
          (nodeParticle_.size() + bodyNode_.size()) * 4 + nodePosition_.size() * sizeof(Vec3) +
-         k_.block.size() * sizeof(Block6) + (k_.column.size() + k_.start.size() + k_.diagonal.size()) * 4 + multigrid_.bytes() +
+         k_.bytes() + multigrid_.bytes() +
          6 * static_cast<std::size_t>(u_.size()) * sizeof(double) +
          (beamStart_.size() + nodeBeams_.size() + mark_.size() + region_.capacity()) * 4;
 }
@@ -459,10 +455,11 @@ void BondLoads::solveAround(std::span<const std::size_t> entries, const BodyStat
       for (int iteration = 0; iteration < kMaxIterations && total > target && regionPart > 0.25 * target; ++iteration) {
         // q = K p over the region's and the rim's rows, from the region's columns
         for (const std::uint32_t i : region_) {
-          Vec6 sum = Vec6::Zero();
+          Vec6 sum = Vec6::Zero();  // (-q: the entries' products subtract)
+          if (mark_[i] == inside) sum = -(k_.diagonalBlock[i] * p_.segment<6>(node(i)));
           for (std::uint32_t k = k_.start[i]; k < k_.start[i + 1]; ++k)
-            if (mark_[k_.column[k]] == inside) sum += k_.block[k] * p_.segment<6>(node(k_.column[k]));
-          q_.segment<6>(node(i)) = sum;
+            if (k != k_.diagonal[i] && mark_[k_.column[k]] == inside) k_.subtractProduct(k, p_.data() + node(k_.column[k]), sum);
+          q_.segment<6>(node(i)) = -sum;
         }
         const double step = rz / regionDot(p_, q_);
         for (std::size_t i = 0; i < interior; ++i) u_.segment<6>(node(region_[i])) += step * p_.segment<6>(node(region_[i]));

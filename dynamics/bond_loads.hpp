@@ -143,7 +143,6 @@ class BondLoads {
     Vec3 e = Vec3::Zero();       // unit, a to b, body frame
     double length = 0.0;
     double axial = 0.0, torsion = 0.0, bending = 0.0;  // E A / L, G J / L, E I / L
-    std::uint32_t ab = 0, ba = 0;                      // its off-diagonal blocks in k_
     bool active = true;
   };
 
@@ -159,7 +158,7 @@ class BondLoads {
   std::vector<Vec3> nodePosition_;           // each node's position when built (the frame's axes)
   std::vector<std::uint32_t> bodyNode_;      // the node of each of the body's particles, in the body's order
   Mat3 toFrame_ = Mat3::Identity();          // the body's axes to the frame's
-  BlockMatrix6 k_;            // the frame's stiffness now
+  FrameStiffness k_;          // the frame's stiffness now
   FrameMultigrid multigrid_;  // of k_, changed with it
   std::vector<std::uint32_t> removed_;  // entries removed since build(), in order
   Eigen::VectorXd f_, u_, r_, z_, p_, q_;

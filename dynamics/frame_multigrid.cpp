@@ -17,16 +17,6 @@ Block6 prolongation(const Vec3& d) {
   return p;
 }
 
-/// s += m x, x the six entries from `x`, column by column (inlined: the products over a row's blocks are most
-/// of a cycle's work, and a call per block costs as much as the product).
-[[gnu::always_inline]] inline void addBlockProduct(const Block6& m, const double* x, Vec6& s) {
-  for (int j = 0; j < 6; ++j) s += m.col(j) * x[j];
-}
-/// s -= m x, as addBlockProduct.
-[[gnu::always_inline]] inline void subtractBlockProduct(const Block6& m, const double* x, Vec6& s) {
-  for (int j = 0; j < 6; ++j) s -= m.col(j) * x[j];
-}
-
 /// f(begin, end) over [0, n), shared among the pool's workers where there are enough rows (each row's
 /// result never depends on which worker computes it).
 template <class F>
@@ -74,8 +64,8 @@ void BlockMatrix6::multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, Thread
   forRows(pool, rows(), [&](std::size_t from, std::size_t to) {
     for (std::size_t i = from; i < to; ++i) {
       Vec6 s = Vec6::Zero();
-      for (std::uint32_t k = start[i]; k < start[i + 1]; ++k) addBlockProduct(block[k], x.data() + 6 * column[k], s);
-      y.segment<6>(6 * static_cast<Eigen::Index>(i)) = s;
+      for (std::uint32_t k = start[i]; k < start[i + 1]; ++k) subtractProduct(k, x.data() + 6 * column[k], s);
+      y.segment<6>(6 * static_cast<Eigen::Index>(i)) = -s;  // (s is -y: the products subtract)
     }
   });
 }
@@ -105,18 +95,25 @@ void BlockMatrix6::setPattern(const std::vector<std::uint32_t>& neighbourStart, 
   block.assign(column.size(), Block6::Zero());
 }
 
-void FrameMultigrid::build(const BlockMatrix6& fine, const std::vector<Vec3>& positions) {
+void FrameMultigrid::build(const FrameStiffness& fine, const std::vector<Vec3>& positions) {
   levels_.clear();
   levels_.reserve(kMaxLevels);
-  std::vector<Vec3> at = positions, centres;
+  std::vector<Vec3> at = positions;
+  if (fine.rows() > kCoarsest && coarsen(fine, at))
+    while (levels_.size() < kMaxLevels && levels_.back().coarse.rows() > kCoarsest && coarsen(levels_.back().coarse, at)) {
+    }
+  coarsestStale_ = true;
+}
+
+template <class Matrix>
+bool FrameMultigrid::coarsen(const Matrix& a, std::vector<Vec3>& at) {
+  std::vector<Vec3> centres;
   std::vector<std::uint32_t> members, memberStart, mark, neighbourStart, neighbours;
   std::vector<std::uint32_t> nearStart, near;
   std::vector<std::uint8_t> rooted;
   constexpr double kNear = 1.2;  // neighbours within 1.2 x the nearest's distance are near
-  while (levels_.size() < kMaxLevels) {
-    const BlockMatrix6& a = matrixOf(levels_.size(), fine);
+  {
     const auto n = static_cast<std::uint32_t>(a.rows());
-    if (n <= kCoarsest) break;
     // the graph aggregates follow: each node's nearest neighbours (within kNear of the nearest's distance),
     // so that an aggregate is a node and the ring around it, not everything a block joins it to
     nearStart.assign(n + 1, 0);
@@ -162,7 +159,7 @@ void FrameMultigrid::build(const BlockMatrix6& fine, const std::vector<Vec3>& po
         if (aggregate[near[k]] == kFree) aggregate[near[k]] = count;
       ++count;
     }
-    if (count == n) break;  // no node has a neighbour: nothing to coarsen
+    if (count == n) return false;  // no node has a neighbour: nothing to coarsen
     // members of each aggregate, in node order, and the aggregates' centres
     memberStart.assign(count + 1, 0);
     for (std::uint32_t i = 0; i < n; ++i) ++memberStart[aggregate[i] + 1];
@@ -205,7 +202,7 @@ void FrameMultigrid::build(const BlockMatrix6& fine, const std::vector<Vec3>& po
       const std::uint32_t ci = aggregate[i];
       for (std::uint32_t k = a.start[i]; k < a.start[i + 1]; ++k) {
         const std::uint32_t j = a.column[k];
-        level.coarse.block[level.coarse.find(ci, aggregate[j])].noalias() += pi.transpose() * a.block[k] * prolongation(level.offset[j]);
+        level.coarse.block[level.coarse.find(ci, aggregate[j])].noalias() += pi.transpose() * a.entry(i, k) * prolongation(level.offset[j]);
       }
     }
     level.memberStart = memberStart;
@@ -221,21 +218,22 @@ void FrameMultigrid::build(const BlockMatrix6& fine, const std::vector<Vec3>& po
       for (Eigen::VectorXd* v : {&level.krylov.c, &level.krylov.v, &level.krylov.r, &level.krylov.d, &level.krylov.w})
         v->resize(6 * static_cast<Eigen::Index>(n));
     levels_.push_back(std::move(level));
-    for (std::uint32_t i = 0; i < n; ++i) refreshDiagonalInverse(levels_.size() - 1, a, i);
+    for (std::uint32_t i = 0; i < n; ++i)
+      levels_.back().diagonalInverse[i] = a.entry(i, a.diagonal[i]).ldlt().solve(Block6::Identity());
     at.swap(centres);
   }
-  coarsestStale_ = true;
+  return true;
 }
 
-void FrameMultigrid::refreshDiagonalInverse(std::size_t level, const BlockMatrix6& a, std::uint32_t node) {
-  levels_[level].diagonalInverse[node] = a.block[a.diagonal[node]].ldlt().solve(Block6::Identity());
+void FrameMultigrid::refreshDiagonalInverse(std::size_t level, const FrameStiffness& fine, std::uint32_t node) {
+  levels_[level].diagonalInverse[node] = diagonalOf(level, fine, node).ldlt().solve(Block6::Identity());
 }
 
-void FrameMultigrid::change(const BlockMatrix6& fine, std::uint32_t i, std::uint32_t j, const Block6& delta) {
+void FrameMultigrid::change(const FrameStiffness& fine, std::uint32_t i, std::uint32_t j, const Block6& delta) {
   Block6 d = delta;
   for (std::size_t l = 0; l < levels_.size(); ++l) {
     Level& level = levels_[l];
-    if (i == j) refreshDiagonalInverse(l, matrixOf(l, fine), i);
+    if (i == j) refreshDiagonalInverse(l, fine, i);
     const std::uint32_t ci = level.aggregate[i], cj = level.aggregate[j];
     Block6 dc = prolongation(level.offset[i]).transpose() * d * prolongation(level.offset[j]);
     if (ci == cj) {
@@ -252,19 +250,22 @@ void FrameMultigrid::change(const BlockMatrix6& fine, std::uint32_t i, std::uint
   coarsestStale_ = true;
 }
 
-void FrameMultigrid::factoriseCoarsest(const BlockMatrix6& fine) {
-  const BlockMatrix6& a = matrixOf(levels_.size(), fine);
+template <class Matrix>
+void FrameMultigrid::factorise(const Matrix& a) {
   const auto n = static_cast<Eigen::Index>(a.rows());
   coarsestDense_.setZero(6 * n, 6 * n);
   for (Eigen::Index i = 0; i < n; ++i)
     for (std::uint32_t k = a.start[static_cast<std::size_t>(i)]; k < a.start[static_cast<std::size_t>(i) + 1]; ++k)
-      coarsestDense_.block<6, 6>(6 * i, 6 * static_cast<Eigen::Index>(a.column[k])) = a.block[k];
+      coarsestDense_.block<6, 6>(6 * i, 6 * static_cast<Eigen::Index>(a.column[k])) = a.entry(static_cast<std::uint32_t>(i), k);
   coarsestLdlt_.compute(coarsestDense_);
   coarsestStale_ = false;
 }
 
-void FrameMultigrid::apply(const BlockMatrix6& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z, ThreadPool* pool) {
-  if (coarsestStale_) factoriseCoarsest(fine);
+void FrameMultigrid::apply(const FrameStiffness& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z, ThreadPool* pool) {
+  if (coarsestStale_) {
+    if (levels_.empty()) factorise(fine);
+    else factorise(levels_.back().coarse);
+  }
   pool_ = pool;
   cycle(0, fine, r, z);
   pool_ = nullptr;
@@ -302,7 +303,8 @@ void FrameMultigrid::coarseCorrection(std::size_t l, const BlockMatrix6& a, cons
   x = (alpha1 / rho1 - gamma * alpha2 / (rho1 * rho2)) * k.c + (alpha2 / rho2) * k.d;
 }
 
-void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+template <class Matrix>
+void FrameMultigrid::cycle(std::size_t l, const Matrix& a, const Eigen::VectorXd& r, Eigen::VectorXd& z) {
   if (l == levels_.size()) {
     z = coarsestLdlt_.solve(r);
     return;
@@ -311,9 +313,6 @@ void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::Ve
   const auto n = static_cast<std::uint32_t>(a.rows());
   const auto rows = static_cast<std::uint32_t>(level.sweepRows);
   const std::size_t chunks = (n + rows - 1) / rows;
-  const auto subtract = [&](std::uint32_t k, const Eigen::VectorXd& x, Vec6& s) {
-    subtractBlockProduct(a.block[k], x.data() + 6 * static_cast<std::size_t>(a.column[k]), s);
-  };
   // the forward sweep from zero, chunk by chunk (sweepRows nodes each), in node order within a chunk:
   // z_i = D_i^-1 (r_i - sum_{chunk start <= j < i} A_ij z_j). The chunks are fixed by the level's size, not by
   // the threads, so the result is the same bits for any number; with one chunk it is Gauss-Seidel itself
@@ -323,7 +322,7 @@ void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::Ve
       Vec6 s = r.segment<6>(6 * static_cast<Eigen::Index>(i));
       std::uint32_t k = a.start[i];
       while (k < a.diagonal[i] && a.column[k] < lo) ++k;
-      for (; k < a.diagonal[i]; ++k) subtract(k, z, s);
+      for (; k < a.diagonal[i]; ++k) a.subtractProduct(k, z.data() + 6 * static_cast<std::size_t>(a.column[k]), s);
       z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * s;
     }
   });
@@ -333,8 +332,8 @@ void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::Ve
     for (std::size_t i = from; i < to; ++i) {
       const std::uint32_t lo = static_cast<std::uint32_t>(i) / rows * rows;
       Vec6 s = Vec6::Zero();
-      for (std::uint32_t k = a.start[i]; k < a.diagonal[i] && a.column[k] < lo; ++k) subtract(k, z, s);
-      for (std::uint32_t k = a.diagonal[i] + 1; k < a.start[i + 1]; ++k) subtract(k, z, s);
+      for (std::uint32_t k = a.start[i]; k < a.diagonal[i] && a.column[k] < lo; ++k) a.subtractProduct(k, z.data() + 6 * static_cast<std::size_t>(a.column[k]), s);
+      for (std::uint32_t k = a.diagonal[i] + 1; k < a.start[i + 1]; ++k) a.subtractProduct(k, z.data() + 6 * static_cast<std::size_t>(a.column[k]), s);
       level.residual.segment<6>(6 * static_cast<Eigen::Index>(i)) = s;
     }
   });
@@ -373,10 +372,10 @@ void FrameMultigrid::cycle(std::size_t l, const BlockMatrix6& a, const Eigen::Ve
       while (inside < last && a.column[inside] < lo) ++inside;
       while (after > inside && a.column[after - 1] >= hi) --after;
       Vec6 s = r.segment<6>(6 * static_cast<Eigen::Index>(i));
-      for (std::uint32_t k = first; k < inside; ++k) subtract(k, level.before, s);
-      for (std::uint32_t k = inside; k < a.diagonal[i]; ++k) subtract(k, z, s);
-      for (std::uint32_t k = a.diagonal[i] + 1; k < after; ++k) subtract(k, z, s);
-      for (std::uint32_t k = after; k < last; ++k) subtract(k, level.before, s);
+      for (std::uint32_t k = first; k < inside; ++k) a.subtractProduct(k, level.before.data() + 6 * static_cast<std::size_t>(a.column[k]), s);
+      for (std::uint32_t k = inside; k < a.diagonal[i]; ++k) a.subtractProduct(k, z.data() + 6 * static_cast<std::size_t>(a.column[k]), s);
+      for (std::uint32_t k = a.diagonal[i] + 1; k < after; ++k) a.subtractProduct(k, z.data() + 6 * static_cast<std::size_t>(a.column[k]), s);
+      for (std::uint32_t k = after; k < last; ++k) a.subtractProduct(k, level.before.data() + 6 * static_cast<std::size_t>(a.column[k]), s);
       z.segment<6>(6 * static_cast<Eigen::Index>(i)) = level.diagonalInverse[i] * s;
     }
   });

@@ -35,13 +35,11 @@
 
 #include <Eigen/Dense>
 
+#include "volpar/dynamics/frame_stiffness.hpp"
 #include "volpar/engine/core/thread_pool.hpp"
 #include "volpar/engine/core/types.hpp"
 
 namespace volpar {
-
-using Block6 = Eigen::Matrix<double, 6, 6>;
-using Vec6 = Eigen::Matrix<double, 6, 1>;
 
 /// A symmetric matrix of 6 x 6 blocks in compressed rows; every row holds its diagonal block, columns sorted.
 struct BlockMatrix6 {
@@ -53,6 +51,13 @@ struct BlockMatrix6 {
   [[nodiscard]] std::size_t rows() const { return start.size() - 1; }
   /// The index of block (i, j); it must be in the pattern.
   [[nodiscard]] std::uint32_t find(std::uint32_t i, std::uint32_t j) const;
+  /// Entry k of row i.
+  [[nodiscard]] const Block6& entry(std::uint32_t /*i*/, std::uint32_t k) const { return block[k]; }
+  /// s -= (entry k) x, x the six entries of its column's node (inlined: the products over a row's blocks are
+  /// most of a cycle's work, and a call per block costs as much as the product).
+  [[gnu::always_inline]] void subtractProduct(std::uint32_t k, const double* x, Vec6& s) const {
+    for (int j = 0; j < 6; ++j) s -= block[k].col(j) * x[j];
+  }
   /// y = A x (6 entries a row), the rows shared among `pool`'s workers where it is given.
   void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, ThreadPool* pool = nullptr) const;
   /// The pattern of rows whose off-diagonal columns are `neighbours` (CSR: neighbourStart, sorted, no
@@ -69,13 +74,13 @@ class FrameMultigrid {
  public:
   /// The hierarchy of `fine` (a frame's stiffness, kept by the caller, which tells of every change through
   /// change()), whose nodes lie at `positions`.
-  void build(const BlockMatrix6& fine, const std::vector<Vec3>& positions);
+  void build(const FrameStiffness& fine, const std::vector<Vec3>& positions);
   /// Tells the hierarchy that block (i, j) of the fine matrix changed by `delta` (and block (j, i) by its
   /// transpose, where i != j): the coarse levels change with it.
-  void change(const BlockMatrix6& fine, std::uint32_t i, std::uint32_t j, const Block6& delta);
+  void change(const FrameStiffness& fine, std::uint32_t i, std::uint32_t j, const Block6& delta);
   /// z = B r, B the cycle: an approximation of the fine matrix's inverse. `pool`, where given, shares the
   /// work of each level of more than kRowsPerWorker rows a worker; z is the same bits for any number of threads.
-  void apply(const BlockMatrix6& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z, ThreadPool* pool = nullptr);
+  void apply(const FrameStiffness& fine, const Eigen::VectorXd& r, Eigen::VectorXd& z, ThreadPool* pool = nullptr);
 
   [[nodiscard]] std::size_t levels() const { return levels_.size() + 1; }
   /// The inverse of the fine matrix's diagonal block of `node` (the smoother's); only where levels() > 1.
@@ -104,15 +109,24 @@ class FrameMultigrid {
     Eigen::VectorXd before;                 // z before the backward sweep (where there is more than one chunk)
     Krylov krylov;  // (levels above the finest: the K-cycle's steps on this level)
   };
+  /// Adds the level below `a` (the fine matrix or the last coarse one, its nodes at `at`, which become the
+  /// next level's): false where there is nothing to coarsen.
+  template <class Matrix>
+  bool coarsen(const Matrix& a, std::vector<Vec3>& at);
   /// z = the cycle of `level` on r: smoothing, the coarse correction, smoothing (the direct solve, at the coarsest).
-  void cycle(std::size_t level, const BlockMatrix6& a, const Eigen::VectorXd& r, Eigen::VectorXd& z);
+  template <class Matrix>
+  void cycle(std::size_t level, const Matrix& a, const Eigen::VectorXd& r, Eigen::VectorXd& z);
   /// x = an approximate solution of level `level`'s a x = b: the K-cycle (or the direct solve, at the coarsest).
   void coarseCorrection(std::size_t level, const BlockMatrix6& a, const Eigen::VectorXd& b, Eigen::VectorXd& x);
-  void refreshDiagonalInverse(std::size_t level, const BlockMatrix6& a, std::uint32_t node);
-  void factoriseCoarsest(const BlockMatrix6& fine);
-  const BlockMatrix6& matrixOf(std::size_t level, const BlockMatrix6& fine) const {
-    return level == 0 ? fine : levels_[level - 1].coarse;
+  /// The diagonal block of `node` on level `level`.
+  [[nodiscard]] const Block6& diagonalOf(std::size_t level, const FrameStiffness& fine, std::uint32_t node) const {
+    if (level == 0) return fine.diagonalBlock[node];
+    const BlockMatrix6& a = levels_[level - 1].coarse;
+    return a.block[a.diagonal[node]];
   }
+  void refreshDiagonalInverse(std::size_t level, const FrameStiffness& fine, std::uint32_t node);
+  template <class Matrix>
+  void factorise(const Matrix& coarsest);
 
   std::vector<Level> levels_;  // levels_[l] smooths on level l's matrix and restricts to level l + 1
   Eigen::MatrixXd coarsestDense_;
