@@ -352,17 +352,22 @@ BondLoad BondLoads::beamLoad(const Beam& beam) const {
   return l;
 }
 
+std::uint32_t BondLoads::nextStamp() {
+  if (regionStamp_ > 0xfffffff0u) {  // (before it wraps: every mark cleared once)
+    std::fill(mark_.begin(), mark_.end(), 0u);
+    regionStamp_ = 0;
+  }
+  regionStamp_ += 2;
+  return regionStamp_;
+}
+
 bool BondLoads::endsJoined(std::span<const std::size_t> entries) {
   for (const std::size_t e : entries) {
     const std::uint32_t from = beams_[e].a, to = beams_[e].b;
-    if (regionStamp_ > 0xfffffff0u) {
-      std::fill(mark_.begin(), mark_.end(), 0u);
-      regionStamp_ = 0;
-    }
-    regionStamp_ += 2;
+    const std::uint32_t stamp = nextStamp();
     region_.clear();
     region_.push_back(from);
-    mark_[from] = regionStamp_;
+    mark_[from] = stamp;
     bool found = false;
     // breadth first from `from` over the active beams, until `to`, the budget, or the end of its piece
     for (std::size_t head = 0; head < region_.size() && !found && region_.size() < kJoinSearch; ++head)
@@ -374,8 +379,8 @@ bool BondLoads::endsJoined(std::span<const std::size_t> entries) {
           found = true;
           break;
         }
-        if (mark_[next] == regionStamp_) continue;
-        mark_[next] = regionStamp_;
+        if (mark_[next] == stamp) continue;
+        mark_[next] = stamp;
         region_.push_back(next);
       }
     if (!found) return false;
@@ -410,13 +415,8 @@ void BondLoads::solveAround(std::span<const std::size_t> entries, const BodyStat
   for (int rings = kRegionRings;; rings *= 2) {
     // the region: the removed bonds' ends and the nodes within `rings` bonds of them (the stiffness's pattern),
     // then its rim (the nodes one bond further), whose residual the region's change reaches
-    if (regionStamp_ > 0xfffffff0u) {
-      std::fill(mark_.begin(), mark_.end(), 0u);
-      regionStamp_ = 0;
-    }
-    regionStamp_ += 2;
-    inside = regionStamp_;
-    const std::uint32_t rim = regionStamp_ + 1;
+    inside = nextStamp();
+    const std::uint32_t rim = inside + 1;
     region_.clear();
     const auto reach = [&](std::uint32_t i, std::uint32_t stamp) {
       if (mark_[i] == inside || mark_[i] == rim) return;

@@ -148,6 +148,8 @@ class BondLoads {
 
   /// The loads of an active beam, from the displacements u_.
   [[nodiscard]] BondLoad beamLoad(const Beam& beam) const;
+  /// A new mark for mark_ (and that mark + 1), different from every mark the nodes hold.
+  std::uint32_t nextStamp();
   /// The frame of `nodes` at `positions` from `bonds` (build() and replay()).
   bool buildFrame(std::span<const std::uint32_t> nodes, std::span<const Vec3> positions, const ConnectorStore& connectors,
                   std::span<const ConnectorId> bonds);

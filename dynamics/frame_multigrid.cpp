@@ -55,11 +55,6 @@ double chunkedDot(const Eigen::VectorXd& a, const Eigen::VectorXd& b, ThreadPool
   return sum;
 }
 
-std::uint32_t BlockMatrix6::find(std::uint32_t i, std::uint32_t j) const {
-  const auto first = column.begin() + start[i], last = column.begin() + start[i + 1];
-  return static_cast<std::uint32_t>(std::lower_bound(first, last, j) - column.begin());
-}
-
 void BlockMatrix6::multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, ThreadPool* pool) const {
   forRows(pool, rows(), [&](std::size_t from, std::size_t to) {
     for (std::size_t i = from; i < to; ++i) {
@@ -71,27 +66,7 @@ void BlockMatrix6::multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, Thread
 }
 
 void BlockMatrix6::setPattern(const std::vector<std::uint32_t>& neighbourStart, const std::vector<std::uint32_t>& neighbours) {
-  const std::size_t n = neighbourStart.size() - 1;
-  start.assign(n + 1, 0);
-  column.clear();
-  column.reserve(neighbours.size() + n);
-  diagonal.assign(n, 0);
-  for (std::uint32_t i = 0; i < n; ++i) {
-    bool placed = false;
-    for (std::uint32_t k = neighbourStart[i]; k < neighbourStart[i + 1]; ++k) {
-      if (!placed && neighbours[k] > i) {
-        diagonal[i] = static_cast<std::uint32_t>(column.size());
-        column.push_back(i);
-        placed = true;
-      }
-      column.push_back(neighbours[k]);
-    }
-    if (!placed) {
-      diagonal[i] = static_cast<std::uint32_t>(column.size());
-      column.push_back(i);
-    }
-    start[i + 1] = static_cast<std::uint32_t>(column.size());
-  }
+  setRows(neighbourStart, neighbours);
   block.assign(column.size(), Block6::Zero());
 }
 

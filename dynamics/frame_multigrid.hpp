@@ -42,15 +42,9 @@
 namespace volpar {
 
 /// A symmetric matrix of 6 x 6 blocks in compressed rows; every row holds its diagonal block, columns sorted.
-struct BlockMatrix6 {
-  std::vector<std::uint32_t> start{0};  // row i's blocks: [start[i], start[i + 1])
-  std::vector<std::uint32_t> column;
-  std::vector<Block6> block;
-  std::vector<std::uint32_t> diagonal;  // per row, the index of its diagonal block
+struct BlockMatrix6 : BlockPattern {
+  std::vector<Block6> block;  // per entry
 
-  [[nodiscard]] std::size_t rows() const { return start.size() - 1; }
-  /// The index of block (i, j); it must be in the pattern.
-  [[nodiscard]] std::uint32_t find(std::uint32_t i, std::uint32_t j) const;
   /// Entry k of row i.
   [[nodiscard]] const Block6& entry(std::uint32_t /*i*/, std::uint32_t k) const { return block[k]; }
   /// s -= (entry k) x, x the six entries of its column's node (inlined: the products over a row's blocks are

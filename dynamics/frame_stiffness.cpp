@@ -1,38 +1,11 @@
 #include "volpar/dynamics/frame_stiffness.hpp"
 
-#include <algorithm>
-
 namespace volpar {
 
-std::uint32_t FrameStiffness::find(std::uint32_t i, std::uint32_t j) const {
-  const auto first = column.begin() + start[i], last = column.begin() + start[i + 1];
-  return static_cast<std::uint32_t>(std::lower_bound(first, last, j) - column.begin());
-}
-
 void FrameStiffness::setPattern(const std::vector<std::uint32_t>& neighbourStart, const std::vector<std::uint32_t>& neighbours) {
-  const std::size_t n = neighbourStart.size() - 1;
-  start.assign(n + 1, 0);
-  column.clear();
-  column.reserve(neighbours.size() + n);
-  diagonal.assign(n, 0);
-  for (std::uint32_t i = 0; i < n; ++i) {
-    bool placed = false;
-    for (std::uint32_t k = neighbourStart[i]; k < neighbourStart[i + 1]; ++k) {
-      if (!placed && neighbours[k] > i) {
-        diagonal[i] = static_cast<std::uint32_t>(column.size());
-        column.push_back(i);
-        placed = true;
-      }
-      column.push_back(neighbours[k]);
-    }
-    if (!placed) {
-      diagonal[i] = static_cast<std::uint32_t>(column.size());
-      column.push_back(i);
-    }
-    start[i + 1] = static_cast<std::uint32_t>(column.size());
-  }
+  setRows(neighbourStart, neighbours);
   coupling.assign(column.size(), BeamCoupling{});
-  diagonalBlock.assign(n, Block6::Zero());
+  diagonalBlock.assign(rows(), Block6::Zero());
 }
 
 void FrameStiffness::addCoupling(std::uint32_t a, std::uint32_t b, const Vec3& e, double length, double axial,

@@ -19,6 +19,7 @@
 
 #include <Eigen/Dense>
 
+#include "volpar/dynamics/block_pattern.hpp"
 #include "volpar/engine/core/thread_pool.hpp"
 #include "volpar/engine/core/types.hpp"
 
@@ -33,17 +34,11 @@ struct BeamCoupling {
   double move = 0.0, stretch = 0.0, couple = 0.0, turn = 0.0, twist = 0.0;
 };
 
-class FrameStiffness {
+class FrameStiffness : public BlockPattern {
  public:
-  std::vector<std::uint32_t> start{0};  // row i's entries: [start[i], start[i + 1])
-  std::vector<std::uint32_t> column;
-  std::vector<std::uint32_t> diagonal;  // per row, the index of its diagonal entry
   std::vector<BeamCoupling> coupling;   // per entry (zero at the diagonal entries)
   std::vector<Block6> diagonalBlock;    // per row
 
-  [[nodiscard]] std::size_t rows() const { return start.size() - 1; }
-  /// The index of entry (i, j); it must be in the pattern.
-  [[nodiscard]] std::uint32_t find(std::uint32_t i, std::uint32_t j) const;
   /// The pattern of rows whose off-diagonal columns are `neighbours` (CSR: neighbourStart, sorted, no
   /// duplicates, no diagonal), every block zero.
   void setPattern(const std::vector<std::uint32_t>& neighbourStart, const std::vector<std::uint32_t>& neighbours);
